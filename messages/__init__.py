@@ -1,0 +1,34 @@
+"""Typed messages of probeless. Importing this package registers every message family.
+
+Families: header (core/*), diagnostics, sensor, geometry, mesh, lighting. See
+:mod:`probeless.messages.base` for the machinery and :func:`registry` for all type names.
+"""
+
+from __future__ import annotations
+
+from probeless.messages.base import (ArraySpec, FieldSpec, Message, Struct, array, describe, lookup,
+                                     message, registry, schema_of)
+from probeless.messages.header import Clock, Header, Tick
+from probeless.messages.diagnostics import InputCounters, NodeStatus, StageTiming
+from probeless.messages.sensor import CameraInfo, DepthImage, Image
+from probeless.messages.geometry import Floorplan, PoseStamped
+from probeless.messages.mesh import PointCloud, TriangleMesh
+from probeless.messages.lighting import BrightnessDelta, Cubemap, CubemapLevel, SHCoefficients
+
+__all__ = [
+    # machinery
+    "ArraySpec", "FieldSpec", "Message", "Struct", "array", "describe", "lookup", "message",
+    "registry", "schema_of",
+    # header / core
+    "Header", "Tick", "Clock",
+    # diagnostics
+    "NodeStatus", "StageTiming", "InputCounters",
+    # sensor
+    "Image", "DepthImage", "CameraInfo",
+    # geometry
+    "PoseStamped", "Floorplan",
+    # mesh
+    "PointCloud", "TriangleMesh",
+    # lighting
+    "Cubemap", "CubemapLevel", "SHCoefficients", "BrightnessDelta",
+]

@@ -1,0 +1,67 @@
+"""3D geometry data: coloured point clouds and triangle meshes, in the frame of ``header.frame_id``.
+
+Optional per-point/per-vertex arrays (normals, colours, uvs) are "absent" when they have 0 rows,
+otherwise they must have one row per point/vertex. Float colours are linear RGB in [0, 1];
+uint8 colours are sRGB 0..255. Triangles wind counter-clockwise seen from the front (OpenGL).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from probeless.errors import SchemaError
+from probeless.messages.base import Message, array, message
+from probeless.messages.header import Header
+
+
+def _empty(cols: int):
+    return lambda: np.zeros((0, cols), dtype=np.float32)
+
+
+def _optional_rows(obj: object, name: str, rows: int, of: str) -> None:
+    """Raise SchemaError unless field ``name`` has 0 rows or ``rows`` rows."""
+    n = len(getattr(obj, name))
+    if n not in (0, rows):
+        raise SchemaError(f"{type(obj).__name__}.{name}: has {n} rows, expected 0 (absent) or {rows} (one per {of})")
+
+
+@message("mesh/PointCloud", version=1)
+@dataclass(frozen=True)
+class PointCloud(Message):
+    """An unordered set of 3D points with a colour each and optional normals."""
+
+    header: Header      # stamp = capture time; frame_id = frame the points are expressed in
+    points: np.ndarray = array("float32", ("n", 3))                # positions (x, y, z) [m, header.frame_id]
+    colors: np.ndarray = array(("uint8", "float32"), ("n", 3))     # RGB per point [uint8 sRGB | float linear 0..1]
+    normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))  # unit normals, 0 rows = none [-, header.frame_id]
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _optional_rows(self, "normals", len(self.points), "point")
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+
+@message("mesh/TriangleMesh", version=1)
+@dataclass(frozen=True)
+class TriangleMesh(Message):
+    """An indexed triangle mesh with optional per-vertex colours, normals and texture coordinates."""
+
+    header: Header      # stamp = time the mesh was built; frame_id = frame of the vertices
+    vertices: np.ndarray = array("float32", ("v", 3))              # positions (x, y, z) [m, header.frame_id]
+    triangles: np.ndarray = array(("int32", "uint32"), ("t", 3))   # vertex indices, counter-clockwise front [index]
+    vertex_colors: np.ndarray = array(("float32", "uint8"), (None, 3), default_factory=_empty(3))  # RGB, 0 rows = none [uint8 sRGB | float linear 0..1]
+    vertex_normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))  # unit normals, 0 rows = none [-, header.frame_id]
+    uvs: np.ndarray = array("float32", (None, 2), default_factory=_empty(2))  # texture coords (u right, v up, OpenGL), 0 rows = none [0..1]
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        nv = len(self.vertices)
+        for name in ("vertex_colors", "vertex_normals", "uvs"):
+            _optional_rows(self, name, nv, "vertex")
+        if self.triangles.size and (self.triangles.min() < 0 or self.triangles.max() >= nv):
+            raise SchemaError(f"TriangleMesh.triangles: index out of range [0, {nv}): "
+                              f"min {self.triangles.min()}, max {self.triangles.max()}")

@@ -1,0 +1,14 @@
+"""Node implementations. ``BUILTIN`` maps each registered node type name to ``module:Class``.
+
+Swapping an implementation in a graph means changing one ``node:`` line to another name here
+(or to any ``module:Class``, or to a name another package registers in the ``probeless.nodes``
+entry-point group).
+"""
+
+BUILTIN: dict[str, str] = {
+    "pattern_source": "probeless.nodes.demo.pattern:PatternSource",
+    "image_transform": "probeless.nodes.demo.transform:ImageTransform",
+    "summary_sink": "probeless.nodes.demo.summary:SummarySink",
+    "bench_source": "probeless.tools.bench_nodes:BenchSource",
+    "bench_sink": "probeless.tools.bench_nodes:BenchSink",
+}

@@ -1,0 +1,61 @@
+"""Summary sink: counts frames, measures latency and rate, writes a JSON summary and the last frame."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from probeless.messages.sensor import Image
+from probeless.runtime import Node, param
+
+
+def summarize(stamps_ns: list[int], latencies_ms: list[float], seqs: list[int]) -> dict:
+    """Frame count, rate from stamps, latency percentiles and seq gaps of a received stream."""
+    out = {"frames": len(stamps_ns), "seq_gaps": 0, "rate_hz": 0.0,
+           "latency_ms_p50": None, "latency_ms_p99": None}
+    if len(seqs) > 1:
+        out["seq_gaps"] = int(sum(max(0, b - a - 1) for a, b in zip(seqs, seqs[1:])))
+    if len(stamps_ns) > 1:
+        span = (stamps_ns[-1] - stamps_ns[0]) / 1e9
+        out["rate_hz"] = (len(stamps_ns) - 1) / span if span > 0 else 0.0
+    if latencies_ms:
+        p50, p99 = np.percentile(latencies_ms, [50, 99])
+        out["latency_ms_p50"], out["latency_ms_p99"] = float(p50), float(p99)
+    return out
+
+
+class SummarySink(Node):
+    """Writes ``summary.json`` and ``last_frame.png`` to ``out_dir`` when the stream ends."""
+
+    INPUTS = {"image": Image}
+
+    @dataclass(frozen=True)
+    class Params:
+        out_dir: str = param("out/demo", doc="directory for summary.json and last_frame.png")
+
+    def setup(self) -> None:
+        self.stamps: list[int] = []
+        self.latencies: list[float] = []
+        self.seqs: list[int] = []
+        self.last: np.ndarray | None = None
+
+    def on_input(self, name: str, msg: Image) -> None:
+        self.stamps.append(msg.header.stamp_ns)
+        self.seqs.append(msg.header.seq)
+        self.latencies.append((time.time_ns() - msg.header.stamp_ns) / 1e6)
+        self.last = msg.data
+
+    def close(self) -> None:
+        out = Path(self.params.out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        summary = summarize(self.stamps, self.latencies, self.seqs)
+        (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        if self.last is not None:
+            cv2.imwrite(str(out / "last_frame.png"), cv2.cvtColor(self.last, cv2.COLOR_RGB2BGR))
+        self.ctx.log.info("wrote %s: %d frames, %.1f Hz, latency p50 %s ms", out / "summary.json",
+                          summary["frames"], summary["rate_hz"], summary["latency_ms_p50"])

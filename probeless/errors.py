@@ -1,0 +1,58 @@
+"""The one exception hierarchy of probeless.
+
+Every error a user can trigger derives from :class:`ProbelessError`, so a CLI
+can print it without a traceback and exit non-zero.
+"""
+
+from __future__ import annotations
+
+
+class ProbelessError(Exception):
+    """Base class of every probeless error."""
+
+
+class SchemaError(ProbelessError):
+    """A message does not match its declared schema (bad type, dtype, shape, size)."""
+
+
+class GraphError(ProbelessError):
+    """A launch graph is invalid. Carries where: file, line, node id and key."""
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 node_id: str | None = None, key: str | None = None):
+        self.message = message
+        self.file = file
+        self.line = line
+        self.node_id = node_id
+        self.key = key
+        super().__init__(self.format())
+
+    def format(self) -> str:
+        where = ""
+        if self.file:
+            where = f"{self.file}:{self.line}" if self.line else self.file
+        parts = [p for p in (where,
+                             f"node '{self.node_id}'" if self.node_id else "",
+                             f"key '{self.key}'" if self.key else "") if p]
+        prefix = ": ".join(parts)
+        return f"{prefix}: {self.message}" if prefix else self.message
+
+
+class ParamError(GraphError):
+    """A node parameter is unknown, of the wrong type or out of range."""
+
+
+class GraphErrors(ProbelessError):
+    """Several graph errors found in one validation pass."""
+
+    def __init__(self, errors: list[GraphError]):
+        self.errors = list(errors)
+        super().__init__("\n".join(e.format() for e in self.errors))
+
+
+class NodeError(ProbelessError):
+    """A node failed at run time (setup, callback or close)."""
+
+
+class TransportError(ProbelessError):
+    """A socket could not be bound or connected, or the bus is shut down."""

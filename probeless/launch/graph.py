@@ -1,0 +1,336 @@
+"""Launch graph files: dora-rs style dataflows with ROS 2 launch features (args, includes).
+
+::
+
+    args:
+      fps: 30                                   # name: default   (or name: {default: .., doc: ..})
+    include:
+      - {file: camera.yaml, namespace: left, args: {fps: $(arg fps)}}
+    nodes:
+      - id: blur
+        node: image_transform                   # registered name or module:Class
+        inputs:
+          image: {source: left/camera/image, queue_size: 2, policy: latest}
+          tick: timer/hz/$(arg fps)             # built-in timer: timer/hz/N, timer/ms/N, timer/s/N
+        outputs: [image]
+        params: {operation: blur}
+        restart: on-failure                     # never (default) | on-failure
+        max_restarts: 3
+        restart_backoff_s: 0.5
+
+Substitutions in any string: ``$(arg NAME)``, ``$(env NAME)`` / ``$(env NAME default)`` and
+``$(dirname)`` (this file's directory). A string that is exactly one substitution keeps the
+value's type. Inside an include, ids and input sources are prefixed with the namespace; a source
+starting with ``/`` is absolute.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from probeless.errors import GraphError
+from probeless.launch.yamlload import LineDict, LineList, load_yaml
+from probeless.runtime.queues import POLICIES
+
+TOP_KEYS = {"description", "args", "hosts", "include", "nodes"}
+NODE_KEYS = {"id", "node", "inputs", "outputs", "params", "restart", "max_restarts", "restart_backoff_s",
+             "host", "description"}
+INPUT_KEYS = {"source", "queue_size", "policy"}
+INCLUDE_KEYS = {"file", "namespace", "args"}
+DEFAULT_QUEUE = {"policy": "drop_oldest", "queue_size": 10}
+_SUBST = re.compile(r"\$\((arg|env|dirname)(?:\s+([^)\s]+))?(?:\s+([^)]*))?\)")
+_TIMER = re.compile(r"^timer/(hz|ms|s)/([0-9]*\.?[0-9]+)$")
+_ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*(/[A-Za-z_][A-Za-z0-9_\-]*)*$")
+
+
+@dataclass
+class InputDecl:
+    """One wired input of a node."""
+
+    name: str
+    source: str                     # "<node_id>/<output>" or "timer/<unit>/<value>"
+    policy: str = "drop_oldest"
+    queue_size: int = 10
+    line: int = 0
+    timer_period_ns: int | None = None
+
+
+@dataclass
+class NodeDecl:
+    """One node of a graph after args, includes and namespaces are resolved."""
+
+    id: str
+    node: str
+    file: str
+    line: int
+    lines: dict = field(default_factory=dict)
+    inputs: dict[str, InputDecl] = field(default_factory=dict)
+    outputs: list[str] | None = None
+    params: dict = field(default_factory=dict)
+    param_lines: dict = field(default_factory=dict)
+    restart: str = "never"
+    max_restarts: int = 3
+    restart_backoff_s: float = 0.5
+    host: str | None = None
+
+
+@dataclass
+class Graph:
+    """A parsed graph: nodes by id, named hosts, and the parse errors found on the way."""
+
+    file: str
+    nodes: dict[str, NodeDecl] = field(default_factory=dict)
+    hosts: dict[str, dict] = field(default_factory=dict)
+    args: dict[str, Any] = field(default_factory=dict)
+    errors: list[GraphError] = field(default_factory=list)
+
+
+def parse_graph(path: str | Path, overrides: dict[str, Any] | None = None) -> Graph:
+    """Parse a graph file and its includes. Errors are collected in ``graph.errors``."""
+    graph = Graph(str(path))
+    _parse_file(Path(path), overrides or {}, "", graph, stack=())
+    return graph
+
+
+def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple) -> None:
+    file = str(path)
+    if path.resolve() in stack:
+        graph.errors.append(GraphError("include cycle: " + " -> ".join(map(str, stack + (path,))), file=file))
+        return
+    doc = load_yaml(path)
+    if not isinstance(doc, LineDict):
+        graph.errors.append(GraphError("a graph file must be a mapping with a 'nodes' list", file=file))
+        return
+    err = _collector(graph, file)
+    for key in doc:
+        if key not in TOP_KEYS:
+            err(f"unknown top-level key (allowed: {', '.join(sorted(TOP_KEYS))})", doc.line_of(key), key=key)
+    args = _resolve_args(doc.get("args"), overrides, err, doc.line_of("args"), is_root=not stack)
+    if not stack:
+        graph.args = dict(args)
+    subst = _Substituter(args, path.parent, err)
+    for name, host in (_mapping(doc, "hosts", err) or {}).items():
+        graph.hosts[str(name)] = subst(host, doc.line_of("hosts"))
+    for i, inc in enumerate(_sequence(doc, "include", err)):
+        line = doc["include"].lines[i]
+        _include(subst(inc, line), line, path, ns, graph, stack + (path.resolve(),), err)
+    for i, raw in enumerate(_sequence(doc, "nodes", err)):
+        decl = _parse_node(raw, doc["nodes"].lines[i], ns, file, subst, err)
+        if decl is None:
+            continue
+        if decl.id in graph.nodes:
+            err(f"duplicate node id (first at {graph.nodes[decl.id].file}:{graph.nodes[decl.id].line})",
+                decl.line, node_id=decl.id, key="id")
+            continue
+        graph.nodes[decl.id] = decl
+
+
+def _collector(graph: Graph, file: str):
+    def err(msg: str, line: int | None = None, node_id: str | None = None, key: str | None = None) -> None:
+        graph.errors.append(GraphError(msg, file=file, line=line, node_id=node_id, key=key))
+    return err
+
+
+def _mapping(doc: LineDict, key: str, err) -> LineDict | None:
+    value = doc.get(key)
+    if value is not None and not isinstance(value, dict):
+        err(f"'{key}' must be a mapping", doc.line_of(key), key=key)
+        return None
+    return value
+
+
+def _sequence(doc: LineDict, key: str, err) -> list:
+    value = doc.get(key)
+    if value is None:
+        return []
+    if not isinstance(value, LineList):
+        err(f"'{key}' must be a list", doc.line_of(key), key=key)
+        return []
+    return value
+
+
+def _resolve_args(decl: Any, overrides: dict, err, line: int, is_root: bool) -> dict:
+    decl = decl or {}
+    if not isinstance(decl, dict):
+        err("'args' must be a mapping of name: default", line, key="args")
+        return {}
+    out = {}
+    for name, spec in decl.items():
+        default = spec.get("default") if isinstance(spec, dict) else spec
+        required = isinstance(spec, dict) and "default" not in spec
+        if name in overrides:
+            out[name] = overrides[name]
+        elif required:
+            err("required argument not given (pass name:=value)", decl.line_of(name), key=f"args.{name}")
+        else:
+            out[name] = default
+    for name in overrides:
+        if name not in decl and is_root:
+            err(f"unknown argument {name!r} (declared: {', '.join(map(str, decl)) or 'none'})", line, key=name)
+    return out
+
+
+class _Substituter:
+    """Applies $(arg)/$(env)/$(dirname) to every string in a value."""
+
+    def __init__(self, args: dict, dirname: Path, err):
+        self.args, self.dirname, self.err = args, dirname, err
+
+    def __call__(self, value: Any, line: int) -> Any:
+        if isinstance(value, str):
+            return self._string(value, line)
+        if isinstance(value, LineDict):
+            out = LineDict((k, self(v, value.line_of(k))) for k, v in value.items())
+            out.line, out.lines = value.line, value.lines
+            return out
+        if isinstance(value, LineList):
+            out = LineList(self(v, value.lines[i]) for i, v in enumerate(value))
+            out.line, out.lines = value.line, value.lines
+            return out
+        return value
+
+    def _string(self, text: str, line: int) -> Any:
+        whole = _SUBST.fullmatch(text)
+        if whole:
+            return self._value(whole, line)
+        return _SUBST.sub(lambda m: str(self._value(m, line)), text)
+
+    def _value(self, m: re.Match, line: int) -> Any:
+        kind, name, default = m.group(1), m.group(2), m.group(3)
+        if kind == "dirname":
+            return str(self.dirname)
+        if kind == "env":
+            if name in os.environ:
+                return os.environ[name]
+            if default is None:
+                self.err(f"environment variable {name!r} is not set", line, key=f"$(env {name})")
+                return ""
+            return default
+        if name not in self.args:
+            self.err(f"undeclared argument {name!r} in substitution", line, key=f"$(arg {name})")
+            return ""
+        return self.args[name]
+
+
+def _include(inc: Any, line: int, parent: Path, ns: str, graph: Graph, stack: tuple, err) -> None:
+    if not isinstance(inc, dict) or "file" not in inc:
+        err("an include needs at least 'file'", line, key="include")
+        return
+    for key in inc:
+        if key not in INCLUDE_KEYS:
+            err(f"unknown include key (allowed: {', '.join(sorted(INCLUDE_KEYS))})", inc.line_of(key), key=key)
+    path = (parent.parent / str(inc["file"])).resolve()
+    if not path.exists():
+        err(f"included file not found: {path}", inc.line_of("file"), key="file")
+        return
+    sub_ns = str(inc.get("namespace") or "")
+    if sub_ns and not _ID.match(sub_ns):
+        err(f"invalid namespace {sub_ns!r}", inc.line_of("namespace"), key="namespace")
+        return
+    full_ns = "/".join(p for p in (ns, sub_ns) if p)
+    try:
+        _parse_file(path, dict(inc.get("args") or {}), full_ns, graph, stack)
+    except GraphError as exc:
+        graph.errors.append(exc)
+
+
+def _parse_node(raw: Any, line: int, ns: str, file: str, subst: _Substituter, err) -> NodeDecl | None:
+    if not isinstance(raw, LineDict):
+        err("each node must be a mapping with 'id' and 'node'", line)
+        return None
+    local_id = raw.get("id")
+    if not isinstance(local_id, str) or not _ID.match(local_id) or local_id == "timer":
+        err(f"invalid or missing node id {local_id!r} (letters, digits, _ and -; 'timer' is reserved)",
+            raw.line_of("id"), key="id")
+        return None
+    node_id = f"{ns}/{local_id}" if ns else local_id
+    raw = subst(raw, line)
+    for key in raw:
+        if key not in NODE_KEYS:
+            err(f"unknown node key (allowed: {', '.join(sorted(NODE_KEYS))})", raw.line_of(key), node_id, key)
+    decl = NodeDecl(node_id, raw.get("node"), file, raw.line, dict(raw.lines))
+    if not isinstance(decl.node, str) or not decl.node:
+        err("missing 'node' (a registered node type or module:Class)", raw.line, node_id, "node")
+        return None
+    _parse_inputs(raw.get("inputs"), raw.line_of("inputs"), ns, decl, err)
+    outputs = raw.get("outputs")
+    if outputs is not None:
+        if isinstance(outputs, list) and all(isinstance(o, str) for o in outputs):
+            decl.outputs = list(outputs)
+        else:
+            err("'outputs' must be a list of output names", raw.line_of("outputs"), node_id, "outputs")
+    params = raw.get("params") or LineDict()
+    if isinstance(params, dict):
+        decl.params = dict(params)
+        decl.param_lines = dict(getattr(params, "lines", {}))
+    else:
+        err("'params' must be a mapping", raw.line_of("params"), node_id, "params")
+    _parse_lifecycle(raw, decl, err)
+    return decl
+
+
+def _parse_lifecycle(raw: LineDict, decl: NodeDecl, err) -> None:
+    decl.restart = raw.get("restart", "never")
+    if decl.restart not in ("never", "on-failure"):
+        err("restart must be 'never' or 'on-failure'", raw.line_of("restart"), decl.id, "restart")
+    decl.max_restarts = raw.get("max_restarts", 3)
+    if type(decl.max_restarts) is not int or decl.max_restarts < 0:
+        err("max_restarts must be an integer >= 0", raw.line_of("max_restarts"), decl.id, "max_restarts")
+    decl.restart_backoff_s = raw.get("restart_backoff_s", 0.5)
+    if not isinstance(decl.restart_backoff_s, (int, float)) or decl.restart_backoff_s < 0:
+        err("restart_backoff_s must be a number >= 0", raw.line_of("restart_backoff_s"), decl.id,
+            "restart_backoff_s")
+    host = raw.get("host")
+    if host is not None and not isinstance(host, str):
+        err("host must be a host name from 'hosts:' or ADDRESS:PORT", raw.line_of("host"), decl.id, "host")
+    decl.host = host
+
+
+def _parse_inputs(inputs: Any, line: int, ns: str, decl: NodeDecl, err) -> None:
+    if inputs is None:
+        return
+    if not isinstance(inputs, LineDict):
+        err("'inputs' must be a mapping of input name: source", line, decl.id, "inputs")
+        return
+    for name, spec in inputs.items():
+        iline = inputs.line_of(name)
+        key = f"inputs.{name}"
+        if isinstance(spec, str):
+            spec = {"source": spec}
+        if not isinstance(spec, dict) or not isinstance(spec.get("source"), str):
+            err("an input is 'node_id/output', 'timer/hz/N' or {source, queue_size, policy}", iline, decl.id, key)
+            continue
+        for k in spec:
+            if k not in INPUT_KEYS:
+                err(f"unknown input key {k!r} (allowed: {', '.join(sorted(INPUT_KEYS))})", iline, decl.id, key)
+        policy = spec.get("policy", DEFAULT_QUEUE["policy"])
+        size = spec.get("queue_size", 1 if policy == "latest" else DEFAULT_QUEUE["queue_size"])
+        if policy not in POLICIES:
+            err(f"unknown policy {policy!r} (allowed: {', '.join(POLICIES)})", iline, decl.id, key)
+            continue
+        if type(size) is not int or size < 1:
+            err(f"queue_size must be an integer >= 1, got {size!r}", iline, decl.id, key)
+            continue
+        if policy == "latest" and size != 1:
+            err("policy 'latest' keeps one message; omit queue_size or set it to 1", iline, decl.id, key)
+            continue
+        decl.inputs[str(name)] = _input(str(name), spec["source"], ns, policy, size, iline, decl.id, err)
+
+
+def _input(name: str, source: str, ns: str, policy: str, size: int, line: int, node_id: str, err) -> InputDecl:
+    inp = InputDecl(name, source, policy, size, line)
+    if source.startswith("timer/"):
+        m = _TIMER.match(source)
+        if not m or float(m.group(2)) <= 0:
+            err(f"invalid timer {source!r} (use timer/hz/N, timer/ms/N or timer/s/N)", line, node_id,
+                f"inputs.{name}")
+            return inp
+        value = float(m.group(2))
+        inp.timer_period_ns = int({"hz": 1e9 / value, "ms": value * 1e6, "s": value * 1e9}[m.group(1)])
+        return inp
+    inp.source = source[1:] if source.startswith("/") else (f"{ns}/{source}" if ns else source)
+    return inp

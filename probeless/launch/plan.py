@@ -1,0 +1,60 @@
+"""The resolved run plan handed to node processes: endpoints, wiring, subscriber counts."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from probeless.launch.graph import Graph
+from probeless.launch.validate import host_endpoint, split_source
+from probeless.runtime.node import output_type
+
+
+def new_run_dir() -> Path:
+    """A fresh private directory for this run's ipc sockets and graph spec (short: ipc paths are limited)."""
+    base = Path(os.environ.get("PROBELESS_RUN_DIR") or Path(tempfile.gettempdir()) / f"probeless-{os.getuid()}")
+    base.mkdir(mode=0o700, parents=True, exist_ok=True)
+    return Path(tempfile.mkdtemp(prefix=time.strftime("%H%M%S-"), dir=base))
+
+
+def build_plan(graph: Graph, run_dir: Path) -> dict[str, Any]:
+    """JSON-serialisable plan of a validated graph (``graph.node_classes`` filled by validate)."""
+    endpoints = {}
+    for index, decl in enumerate(graph.nodes.values()):
+        endpoints[decl.id] = host_endpoint(graph, decl) or f"ipc://{run_dir}/{index}.pub"
+    subscribers: dict[str, int] = {}
+    nodes = {}
+    for index, decl in enumerate(graph.nodes.values()):
+        cls = graph.node_classes[decl.id]
+        inputs = []
+        for inp in decl.inputs.values():
+            entry = {"name": inp.name, "policy": inp.policy, "queue_size": inp.queue_size}
+            if inp.timer_period_ns is not None:
+                entry["timer_period_ns"] = inp.timer_period_ns
+            else:
+                src_id, out = split_source(graph, inp.source)
+                topic = f"{src_id}/{out}"
+                _, typ = output_type(graph.node_classes[src_id], out)
+                entry.update(topic=topic, source_node=src_id, output=out, endpoint=endpoints[src_id],
+                             type_name=typ.TYPE_NAME if typ is not None else None)
+                subscribers[topic] = subscribers.get(topic, 0) + 1
+            inputs.append(entry)
+        names = decl.outputs if decl.outputs is not None else [o for o in cls.OUTPUTS if not o.endswith("/*")]
+        nodes[decl.id] = {"id": decl.id, "index": index, "node": decl.node, "params": decl.params,
+                          "file": decl.file, "line": decl.line, "endpoint": endpoints[decl.id],
+                          "host": decl.host, "inputs": inputs, "restart": decl.restart,
+                          "max_restarts": decl.max_restarts, "restart_backoff_s": decl.restart_backoff_s,
+                          "outputs": {o: {"topic": f"{decl.id}/{o}"} for o in names}}
+    for node in nodes.values():
+        for inp in node["inputs"]:
+            if "topic" in inp:
+                node_out = nodes[inp["source_node"]]["outputs"].setdefault(inp["output"], {"topic": inp["topic"]})
+                node_out["subscribers"] = subscribers[inp["topic"]]
+    for node in nodes.values():
+        for out in node["outputs"].values():
+            out.setdefault("subscribers", 0)
+    return {"file": graph.file, "args": graph.args, "run_dir": str(run_dir),
+            "control": f"ipc://{run_dir}/control", "nodes": nodes}

@@ -1,0 +1,155 @@
+"""Graph validation without starting anything: node types, params, wiring, types, hosts, cycles."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from probeless.errors import GraphError
+from probeless.launch.graph import Graph, NodeDecl
+from probeless.runtime.node import input_type, output_type
+from probeless.runtime.params import check_params
+from probeless.runtime.registry import resolve_node
+
+
+def validate(graph: Graph) -> list[GraphError]:
+    """All errors of a parsed graph (parse errors first). Also fills ``node_classes`` for the plan."""
+    errors = list(graph.errors)
+    classes: dict[str, type] = {}
+    for decl in graph.nodes.values():
+        try:
+            classes[decl.id] = resolve_node(decl.node)
+        except GraphError as exc:
+            errors.append(GraphError(exc.message, file=decl.file, line=decl.lines.get("node", decl.line),
+                                     node_id=decl.id, key="node"))
+    for decl in graph.nodes.values():
+        cls = classes.get(decl.id)
+        if cls is None:
+            continue
+        errors += check_params(cls.Params, decl.params, node_id=decl.id, file=decl.file,
+                               lines=decl.param_lines, line=decl.lines.get("params", decl.line))
+        errors += _check_outputs(decl, cls)
+        errors += _check_inputs(graph, decl, cls, classes)
+        errors += _check_host(graph, decl)
+    errors += _check_cycles(graph)
+    graph.node_classes = classes
+    return errors
+
+
+def split_source(graph: Graph, source: str) -> tuple[str, str] | None:
+    """(node_id, output) of an input source, matching the longest existing node id prefix."""
+    parts = source.split("/")
+    for cut in range(len(parts) - 1, 0, -1):
+        node_id = "/".join(parts[:cut])
+        if node_id in graph.nodes:
+            return node_id, "/".join(parts[cut:])
+    return None
+
+
+def _err(decl: NodeDecl, msg: str, key: str, line: int | None = None) -> GraphError:
+    return GraphError(msg, file=decl.file, line=line or decl.lines.get(key.split(".")[0], decl.line),
+                      node_id=decl.id, key=key)
+
+
+def _check_outputs(decl: NodeDecl, cls: type) -> list[GraphError]:
+    errors = []
+    for out in decl.outputs or []:
+        if not output_type(cls, out)[0]:
+            errors.append(_err(decl, f"{decl.node} has no output {out!r} (declared: "
+                                     f"{', '.join(cls.OUTPUTS) or 'none'})", "outputs"))
+    return errors
+
+
+def _check_inputs(graph: Graph, decl: NodeDecl, cls: type, classes: dict) -> list[GraphError]:
+    errors = []
+    for inp in decl.inputs.values():
+        key = f"inputs.{inp.name}"
+        declared, want = input_type(cls, inp.name)
+        if not declared:
+            errors.append(_err(decl, f"{decl.node} has no input {inp.name!r} (declared: "
+                                     f"{', '.join(cls.INPUTS) or 'none'})", key, inp.line))
+            continue
+        if inp.timer_period_ns is not None:
+            from probeless.messages.header import Tick
+            if want is not None and want is not Tick:
+                errors.append(_err(decl, f"timer input delivers core/Tick, input expects {want.TYPE_NAME}",
+                                   key, inp.line))
+            continue
+        if inp.source.startswith("timer/"):
+            continue  # malformed timer, reported by the parser
+        split = split_source(graph, inp.source)
+        if split is None:
+            errors.append(_err(decl, f"dangling input: no node publishes {inp.source!r} "
+                                     f"(expected '<node_id>/<output>')", key, inp.line))
+            continue
+        src_id, out = split
+        src = graph.nodes[src_id]
+        src_cls = classes.get(src_id)
+        if src_cls is None:
+            continue
+        has, got = output_type(src_cls, out)
+        if not has or (src.outputs is not None and out not in src.outputs and out != "diagnostics"):
+            errors.append(_err(decl, f"dangling input: node {src_id!r} ({src.node}) has no output {out!r}",
+                               key, inp.line))
+        elif want is not None and got is not None and want.TYPE_NAME != got.TYPE_NAME:
+            errors.append(_err(decl, f"type mismatch: {src_id}/{out} publishes {got.TYPE_NAME}, "
+                                     f"input {inp.name!r} expects {want.TYPE_NAME}", key, inp.line))
+    return errors
+
+
+def _check_host(graph: Graph, decl: NodeDecl) -> list[GraphError]:
+    errors = []
+    if decl.host is not None and decl.host not in graph.hosts and not _literal_host(decl.host):
+        errors.append(_err(decl, f"unknown host {decl.host!r} (declare it under 'hosts:' or use ADDRESS:PORT)",
+                           "host"))
+    for inp in decl.inputs.values():
+        split = split_source(graph, inp.source) if inp.timer_period_ns is None else None
+        if split and graph.nodes[split[0]].host != decl.host and graph.nodes[split[0]].host is None:
+            errors.append(_err(decl, f"input crosses hosts but node {split[0]!r} has no 'host:', so its "
+                                     f"outputs are local ipc endpoints", f"inputs.{inp.name}", inp.line))
+    return errors
+
+
+def _literal_host(host: str) -> tuple[str, int] | None:
+    addr, _, port = host.rpartition(":")
+    return (addr, int(port)) if addr and port.isdigit() and 0 < int(port) < 65536 else None
+
+
+def host_endpoint(graph: Graph, decl: NodeDecl) -> str | None:
+    """tcp endpoint of a node's outputs when it declares a host, else None (ipc)."""
+    if decl.host is None:
+        return None
+    literal = _literal_host(decl.host)
+    if literal:
+        return f"tcp://{literal[0]}:{literal[1]}"
+    host = graph.hosts[decl.host]
+    same = [d.id for d in graph.nodes.values() if d.host == decl.host]
+    return f"tcp://{host.get('address', '127.0.0.1')}:{int(host.get('port_base', 7400)) + same.index(decl.id)}"
+
+
+def _check_cycles(graph: Graph) -> list[GraphError]:
+    """A cycle is an error when every input on it has policy 'block' (it could deadlock)."""
+    edges: dict[str, list[tuple[str, Any]]] = {n: [] for n in graph.nodes}
+    for decl in graph.nodes.values():
+        for inp in decl.inputs.values():
+            split = split_source(graph, inp.source) if inp.timer_period_ns is None else None
+            if split and inp.policy == "block":
+                edges[split[0]].append((decl.id, inp))
+    errors, state = [], {}
+
+    def visit(node: str, path: list[str]) -> None:
+        state[node] = 1
+        for nxt, inp in edges[node]:
+            if state.get(nxt) == 1:
+                cycle = path[path.index(nxt):] + [nxt] if nxt in path else [node, nxt]
+                decl = graph.nodes[nxt]
+                errors.append(_err(decl, "cycle of blocking inputs " + " -> ".join(cycle) +
+                                   " could deadlock; give one input on it policy latest or drop_oldest",
+                                   f"inputs.{inp.name}", inp.line))
+            elif state.get(nxt) is None:
+                visit(nxt, path + [nxt])
+        state[node] = 2
+
+    for node in graph.nodes:
+        if state.get(node) is None:
+            visit(node, [node])
+    return errors
