@@ -202,3 +202,16 @@ def describe(spec: FieldSpec) -> str:
     if spec.kind == "tuple":
         return f"tuple[{describe(spec.item)}, ...]"
     return spec.kind
+
+
+def messages_equal(a: typing.Any, b: typing.Any) -> bool:
+    """Deep equality of two structs/messages: same type, equal scalars, arrays equal in dtype, shape, values."""
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and a.shape == b.shape and bool(np.array_equal(a, b, equal_nan=a.dtype.kind in "fc"))
+    if isinstance(a, Struct):
+        return all(messages_equal(getattr(a, s.name), getattr(b, s.name)) for s in schema_of(type(a)))
+    if isinstance(a, tuple):
+        return len(a) == len(b) and all(messages_equal(x, y) for x, y in zip(a, b))
+    return a == b

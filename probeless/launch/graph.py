@@ -26,6 +26,7 @@ starting with ``/`` is absolute.
 
 from __future__ import annotations
 
+import difflib
 import os
 import re
 from dataclasses import dataclass, field
@@ -44,6 +45,7 @@ INCLUDE_KEYS = {"file", "namespace", "args"}
 DEFAULT_QUEUE = {"policy": "drop_oldest", "queue_size": 10}
 _SUBST = re.compile(r"\$\((arg|env|dirname)(?:\s+([^)\s]+))?(?:\s+([^)]*))?\)")
 _TIMER = re.compile(r"^timer/(hz|ms|s)/([0-9]*\.?[0-9]+)$")
+_NOT_GIVEN = object()  # a required argument that was not passed (reported once, not at every use)
 _ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*(/[A-Za-z_][A-Za-z0-9_\-]*)*$")
 
 
@@ -108,7 +110,7 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
     err = _collector(graph, file)
     for key in doc:
         if key not in TOP_KEYS:
-            err(f"unknown top-level key (allowed: {', '.join(sorted(TOP_KEYS))})", doc.line_of(key), key=key)
+            err(f"unknown top-level key{_suggest(key, TOP_KEYS)}", doc.line_of(key), key=key)
     args = _resolve_args(doc.get("args"), overrides, err, doc.line_of("args"), is_root=not stack)
     if not stack:
         graph.args = dict(args)
@@ -127,6 +129,12 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
                 decl.line, node_id=decl.id, key="id")
             continue
         graph.nodes[decl.id] = decl
+
+
+def _suggest(key: Any, allowed: set[str]) -> str:
+    close = difflib.get_close_matches(str(key), allowed, n=1)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    return f" ({hint}allowed: {', '.join(sorted(allowed))})"
 
 
 def _collector(graph: Graph, file: str):
@@ -166,6 +174,7 @@ def _resolve_args(decl: Any, overrides: dict, err, line: int, is_root: bool) -> 
             out[name] = overrides[name]
         elif required:
             err("required argument not given (pass name:=value)", decl.line_of(name), key=f"args.{name}")
+            out[name] = _NOT_GIVEN
         else:
             out[name] = default
     for name in overrides:
@@ -211,9 +220,11 @@ class _Substituter:
                 return ""
             return default
         if name not in self.args:
-            self.err(f"undeclared argument {name!r} in substitution", line, key=f"$(arg {name})")
-            return ""
-        return self.args[name]
+            self.err(f"undeclared argument {name!r} in substitution (declare it under 'args:')", line,
+                     key=f"$(arg {name})")
+            return m.group(0)
+        value = self.args[name]
+        return m.group(0) if value is _NOT_GIVEN else value
 
 
 def _include(inc: Any, line: int, parent: Path, ns: str, graph: Graph, stack: tuple, err) -> None:
@@ -251,7 +262,7 @@ def _parse_node(raw: Any, line: int, ns: str, file: str, subst: _Substituter, er
     raw = subst(raw, line)
     for key in raw:
         if key not in NODE_KEYS:
-            err(f"unknown node key (allowed: {', '.join(sorted(NODE_KEYS))})", raw.line_of(key), node_id, key)
+            err(f"unknown node key{_suggest(key, NODE_KEYS)}", raw.line_of(key), node_id, key)
     decl = NodeDecl(node_id, raw.get("node"), file, raw.line, dict(raw.lines))
     if not isinstance(decl.node, str) or not decl.node:
         err("missing 'node' (a registered node type or module:Class)", raw.line, node_id, "node")

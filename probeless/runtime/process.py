@@ -9,6 +9,7 @@ end-of-stream marker on a normal end. Exit code 0 on a clean end, 1 after an err
 
 from __future__ import annotations
 
+import faulthandler
 import json
 import logging
 import os
@@ -215,6 +216,24 @@ class NodeRuntime:
     def _input_topic(self, name: str) -> str:
         return next(i["topic"] for i in self.spec["inputs"] if i["name"] == name)
 
+    def _end_streams(self) -> None:
+        """Final status, end-of-stream on every output, then wait for subscribers to drain.
+
+        A signal during the wait shortens it to a grace period, so a stopping graph never hangs.
+        """
+        signalled = self.stop_requested
+        self.stop_requested = False
+        grace = time.monotonic() + 2.0
+        stop = lambda: (self.stop_requested or signalled) and time.monotonic() > grace  # noqa: E731
+        try:
+            self._publish_diagnostics()
+            for topic in self.topics.values():
+                self.publisher.send_eos(topic, stop)
+            self.publisher.wait_drained(list(self.topics.values()), stop,
+                                        lambda busy: self.log.info("waiting for subscribers to drain: %s", busy))
+        except TransportError:
+            self.log.warning("end of stream not delivered to every subscriber before shutdown")
+
     def _finish(self, eos: bool, code: int) -> int:
         self.state = "stopping"
         if self.node is not None:
@@ -224,13 +243,7 @@ class NodeRuntime:
                 self.log.error("close() failed:\n%s", traceback.format_exc().rstrip())
                 code = 1
         if eos and hasattr(self, "publisher"):
-            self.stop_requested = False  # let EOS go out even after a stop request
-            deadline = time.monotonic() + 2.0
-            for topic in self.topics.values():
-                try:
-                    self.publisher.send_eos(topic, lambda: time.monotonic() > deadline)
-                except TransportError:
-                    self.log.warning("could not send end-of-stream on %s", topic)
+            self._end_streams()
         if hasattr(self, "receiver"):
             self.receiver.stop(self.wake_tx)
             self.receiver.join(2.0)
@@ -253,6 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     def on_signal(signum, frame):
         runtime.stop_requested = True
 
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # `kill -USR1 PID` dumps every thread's stack
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     return runtime.run()

@@ -37,6 +37,8 @@ def resolve_node(name: str) -> type:
     except ImportError as exc:
         raise GraphError(f"node type {name!r}: cannot import module {module_name!r}: {exc}", key="node") from None
     cls = getattr(module, attr, None)
+    if cls is None:
+        raise GraphError(f"node type {name!r}: module {module_name!r} has no class {attr!r}", key="node")
     if not (isinstance(cls, type) and issubclass(cls, Node)):
         raise GraphError(f"node type {name!r}: {target} is not a Node subclass", key="node")
     return cls

@@ -70,6 +70,25 @@ class Publisher:
     def send_eos(self, topic: str, should_stop: Callable[[], bool]) -> None:
         self._send([topic.encode(), wire.EOS], should_stop)
 
+    def wait_drained(self, topics: list[str], should_stop: Callable[[], bool],
+                     note: Callable[[str], None]) -> bool:
+        """After end-of-stream, wait until every subscriber of ``topics`` has unsubscribed.
+
+        A subscriber closes its socket once it has read the end-of-stream marker, so everything
+        sent before it is in the subscriber's memory. Exiting earlier would lose what still sits in
+        socket buffers: libzmq drops a peer's unread data when the connection goes away.
+        """
+        last_note = time.monotonic()
+        while not should_stop():
+            self.poll_subscriptions(50)
+            busy = [t for t in topics if self.subscriptions[t] > 0]
+            if not busy:
+                return True
+            if time.monotonic() - last_note > 5:
+                last_note = time.monotonic()
+                note(", ".join(f"{t} ({self.subscriptions[t]})" for t in busy))
+        return False
+
     def _send(self, frames: list, should_stop: Callable[[], bool]) -> None:
         last = len(frames) - 1
         first = True
@@ -159,7 +178,11 @@ class Receiver(threading.Thread):
             if frames[0].bytes != w.topic.encode():
                 continue  # prefix match of another topic
             if wire.is_eos(frames):
-                item = (EOS_MARK, None)
+                self._push(w.name, (EOS_MARK, None))
+                poller.unregister(sock)
+                del self.socks[sock]
+                sock.close(0)  # tells the publisher this subscriber has everything
+                return
             else:
                 try:
                     _, env, msg = wire.decode(frames, expected=w.type_name, max_bytes=self.max_bytes)

@@ -1,0 +1,80 @@
+"""Small nodes used by the runtime tests (imported by node processes via PYTHONPATH=tests)."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from probeless.messages import Header, Image, NodeStatus, Tick
+from probeless.runtime import Node, param
+
+
+class Ticker(Node):
+    """Publishes a 4x4 image per tick, with the frame index in pixel [0,0,0]; crashes at ``crash_at``."""
+
+    INPUTS = {"tick": Tick}
+    OUTPUTS = {"image": Image}
+
+    @dataclass(frozen=True)
+    class Params:
+        count: int = param(0, min=0)
+        crash_at: int = param(-1)
+        pid_file: str = param("")
+
+    def setup(self):
+        self.n = 0
+        if self.params.pid_file:
+            Path(self.params.pid_file).write_text(str(os.getpid()))
+
+    def on_input(self, name, msg):
+        if self.n == self.params.crash_at:
+            raise ZeroDivisionError("crash requested by test")
+        data = np.full((4, 4, 1), self.n % 256, np.uint8)
+        self.ctx.publish("image", Image(Header(msg.header.stamp_ns, "t"), data, "mono8"))
+        self.n += 1
+        if self.params.count and self.n >= self.params.count:
+            self.ctx.stop()
+
+
+class Recorder(Node):
+    """Records seq numbers per input (any name, any type); optionally slow; writes JSON on close."""
+
+    INPUTS = {"*": None}
+
+    @dataclass(frozen=True)
+    class Params:
+        out: str = param()
+        sleep_ms: float = param(0.0, min=0)
+        crash_once_marker: str = param("")
+        pid_file: str = param("")
+
+    def setup(self):
+        if self.params.crash_once_marker and not Path(self.params.crash_once_marker).exists():
+            Path(self.params.crash_once_marker).write_text("crashed")
+            raise RuntimeError("first start fails on purpose")
+        if self.params.pid_file:
+            Path(self.params.pid_file).write_text(str(os.getpid()))
+        self.seqs: dict[str, list[int]] = {}
+        self.status: dict | None = None
+        self.closed_inputs: list[str] = []
+
+    def on_input(self, name, msg):
+        if isinstance(msg, NodeStatus):
+            self.status = {i.name: {"received": i.received, "dropped": i.dropped, "seq_gaps": i.seq_gaps,
+                                    "queued": i.queued} for i in msg.inputs}
+            return
+        self.seqs.setdefault(name, []).append(msg.header.seq)
+        if self.params.sleep_ms:
+            time.sleep(self.params.sleep_ms / 1e3)
+
+    def on_input_closed(self, name):
+        self.closed_inputs.append(name)
+
+    def close(self):
+        Path(self.params.out).write_text(json.dumps(
+            {"seqs": self.seqs, "status": self.status, "closed": self.closed_inputs}))
