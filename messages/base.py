@@ -41,6 +41,15 @@ class ArraySpec:
     dtypes: tuple[str, ...]
     shape: tuple[int | str | None, ...]
 
+    @property
+    def dtype_set(self) -> frozenset:
+        """The allowed dtypes as numpy dtype objects (cached), for fast membership tests."""
+        cached = self.__dict__.get("_dtype_set")
+        if cached is None:
+            cached = frozenset(np.dtype(d) for d in self.dtypes)
+            object.__setattr__(self, "_dtype_set", cached)
+        return cached
+
     def describe(self) -> str:
         dims = ", ".join("*" if d is None else str(d) for d in self.shape)
         return f"{'|'.join(self.dtypes)}[{dims}]"
@@ -71,7 +80,11 @@ def array(dtypes: str | tuple[str, ...], shape: tuple[int | str | None, ...], *,
 
 
 class Struct:
-    """Base of every wire struct: validates and normalises fields after ``__init__``."""
+    """Base of every wire struct: validates and normalises fields after ``__init__``.
+
+    Subclasses add semantic checks (an encoding matching the dtype, a rigid transform, ...) by
+    overriding :meth:`validate`; it runs after the field checks, and again on every decode.
+    """
 
     def __post_init__(self) -> None:
         dims: dict[str, int] = {}
@@ -80,6 +93,10 @@ class Struct:
             fixed = _check(spec, value, f"{type(self).__name__}.{spec.name}", dims)
             if fixed is not value:
                 object.__setattr__(self, spec.name, fixed)
+        self.validate()
+
+    def validate(self) -> None:
+        """Semantic checks beyond field types; raise SchemaError naming ``Class.field``."""
 
 
 class Message(Struct):
@@ -120,10 +137,12 @@ def registry() -> dict[str, type[Message]]:
 
 def lookup(type_name: str) -> type[Message]:
     """The message class for ``type_name``; raises SchemaError when unknown."""
-    reg = registry()
-    if type_name not in reg:
-        raise SchemaError(f"unknown message type {type_name!r}")
-    return reg[type_name]
+    cls = _REGISTRY.get(type_name)
+    if cls is None:
+        cls = registry().get(type_name)
+        if cls is None:
+            raise SchemaError(f"unknown message type {type_name!r}")
+    return cls
 
 
 @lru_cache(maxsize=None)
@@ -178,7 +197,7 @@ def _check(spec: FieldSpec, value: typing.Any, where: str, dims: dict[str, int])
 def _check_array(spec: ArraySpec, value: typing.Any, where: str, dims: dict[str, int]) -> np.ndarray:
     if not isinstance(value, np.ndarray):
         raise SchemaError(f"{where}: expected ndarray {spec.describe()}, got {type(value).__name__}")
-    if value.dtype.name not in spec.dtypes:
+    if value.dtype not in spec.dtype_set and value.dtype.newbyteorder("=") not in spec.dtype_set:
         raise SchemaError(f"{where}: dtype {value.dtype.name} not in {spec.describe()}")
     if value.ndim != len(spec.shape):
         raise SchemaError(f"{where}: shape {value.shape} has rank {value.ndim}, expected {spec.describe()}")

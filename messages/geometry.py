@@ -113,8 +113,7 @@ class PoseStamped(Message):
     child_frame_id: str     # source frame, e.g. "rgbd"
     target_from_source: np.ndarray = array("float64", (4, 4))  # rigid transform, p_target = T @ p_source [m]
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         check_rigid(self.target_from_source, "PoseStamped.target_from_source")
 
     @classmethod
@@ -147,8 +146,7 @@ class Floorplan(Message):
     vertices: np.ndarray = array("float64", (None, 2))  # floor polygon (x, y), counter-clockwise seen from above, not closed [m, world]
     ceiling_height: float   # ceiling z above the floor [m, world]
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         v = self.vertices
         if len(v) < 3:
             raise SchemaError(f"Floorplan.vertices: need at least 3 vertices, got {len(v)}")

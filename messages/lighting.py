@@ -55,8 +55,7 @@ class Cubemap(Message):
     mips: tuple[CubemapLevel, ...] = ()  # prefiltered levels, increasing roughness, same dtype/channels as faces
     linear: bool = True  # True = linear HDR radiance [scene-referred]; False = display-referred LDR (sRGB)
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         if self.faces.shape[3] not in (3, 4):
             raise SchemaError(f"Cubemap.faces: expected 3 (RGB) or 4 (RGBA) channels, got {self.faces.shape[3]}")
         if not np.all(np.isfinite(self.position)):
@@ -90,8 +89,7 @@ class SHCoefficients(Message):
     bands: int          # number of bands l = 0 .. bands-1, e.g. 3 -> 9 rows, 5 -> 25 rows [count]
     coeffs: np.ndarray = array(("float32", "float64"), (None, 3))  # [k, RGB] coefficients [linear radiance]
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         if self.bands < 1:
             raise SchemaError(f"SHCoefficients.bands: must be >= 1, got {self.bands}")
         if len(self.coeffs) != self.bands ** 2:
@@ -108,8 +106,7 @@ class BrightnessDelta(Message):
     texels_used: int        # texels that contributed to the estimate [count]
     sampled: bool           # False = no usable texels this frame; delta is then zero and meaningless
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         if not np.all(np.isfinite(self.delta)):
             raise SchemaError("BrightnessDelta.delta: contains NaN or inf")
         if self.texels_used < 0:

@@ -37,8 +37,7 @@ class PointCloud(Message):
     colors: np.ndarray = array(("uint8", "float32"), ("n", 3))     # RGB per point [uint8 sRGB | float linear 0..1]
     normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))  # unit normals, 0 rows = none [-, header.frame_id]
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         _optional_rows(self, "normals", len(self.points), "point")
 
     def __len__(self) -> int:
@@ -57,8 +56,7 @@ class TriangleMesh(Message):
     vertex_normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))  # unit normals, 0 rows = none [-, header.frame_id]
     uvs: np.ndarray = array("float32", (None, 2), default_factory=_empty(2))  # texture coords (u right, v up, OpenGL), 0 rows = none [0..1]
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         nv = len(self.vertices)
         for name in ("vertex_colors", "vertex_normals", "uvs"):
             _optional_rows(self, name, nv, "vertex")

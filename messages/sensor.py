@@ -23,6 +23,8 @@ ENCODINGS: dict[str, tuple[str, int]] = {
     "monof32": ("float32", 1), "rgbf32": ("float32", 3), "rgbaf32": ("float32", 4),
 }
 
+_ENCODING_DTYPES = {name: np.dtype(name) for name, _ in ENCODINGS.values()}  # dtype objects: .name is slow
+
 CAMERA_MODELS = ("pinhole", "omnidir", "kannala_brandt", "ocam")
 _D_LENGTHS = {"pinhole": (0, 4, 5, 8, 12, 14), "omnidir": (0, 4), "kannala_brandt": (0, 4), "ocam": (0,)}
 
@@ -36,13 +38,12 @@ class Image(Message):
     data: np.ndarray = array(("uint8", "uint16", "float16", "float32"), ("h", "w", "c"))  # pixels [row, col, channel], optical frame
     encoding: str = "rgb8"  # one of ENCODINGS, e.g. rgb8, bgr8, mono8, mono16, rgbf32 [-]
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         want = ENCODINGS.get(self.encoding)
         if want is None:
             raise SchemaError(f"Image.encoding: unknown encoding {self.encoding!r}, expected one of {sorted(ENCODINGS)}")
         dtype, channels = want
-        if self.data.dtype.name != dtype or self.data.shape[2] != channels:
+        if self.data.dtype != _ENCODING_DTYPES[dtype] or self.data.shape[2] != channels:
             raise SchemaError(f"Image.encoding: {self.encoding!r} needs {dtype} with {channels} channel(s), "
                               f"Image.data is {self.data.dtype.name} with {self.data.shape[2]}")
 
@@ -71,8 +72,7 @@ class DepthImage(Message):
     data: np.ndarray = array(("uint16", "float32"), ("h", "w"))  # depth [depth units = 1/depth_scale m], optical frame
     depth_scale: float  # depth units per metre: 1000.0 for uint16 millimetres, 1.0 for float32 metres [1/m]
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         if not (np.isfinite(self.depth_scale) and self.depth_scale > 0):
             raise SchemaError(f"DepthImage.depth_scale: must be finite and > 0, got {self.depth_scale}")
 
@@ -108,8 +108,7 @@ class CameraInfo(Message):
     ocam_affine: np.ndarray = array("float64", (3,), default_factory=lambda: np.array([1.0, 0.0, 0.0]))  # (c, d, e) stretch [-]
     ocam_center: np.ndarray = array("float64", (2,), default_factory=lambda: np.zeros(2))  # (xc, yc) = (row, col) [px]
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def validate(self) -> None:
         if self.width <= 0 or self.height <= 0:
             raise SchemaError(f"CameraInfo.width/height: must be > 0, got {self.width}x{self.height}")
         if self.model not in CAMERA_MODELS:

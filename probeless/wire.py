@@ -25,6 +25,7 @@ MAX_MESSAGE_BYTES = 512 * 1024 * 1024   # default cap on one message, all frames
 ZERO_COPY_BYTES = 64 * 1024             # frames at least this large are sent without copying
 MAX_RANK = 16
 EOS = b""
+_DTYPES = {s: np.dtype(s) for s in WIRE_DTYPES}  # parsed once: dtype parsing is slow on a cold path
 
 
 @dataclass(frozen=True)
@@ -37,13 +38,19 @@ class Envelope:
     publish_ns: int     # wall-clock time of publishing [ns since the Unix epoch]
 
 
-def encode(topic: str, msg: Message, publisher: str, publish_ns: int) -> list[Any]:
-    """Frames for one message: topic, msgpack metadata, then one frame per array (zero-copy)."""
+def encode(topic: str, msg: Message, publisher: str, publish_ns: int, seq: int | None = None) -> list[Any]:
+    """Frames for one message: topic, msgpack metadata, then one frame per array (zero-copy).
+
+    ``seq``, when given, replaces ``header.seq`` on the wire (the publisher's per-topic counter).
+    """
     if not isinstance(msg, Message) or not msg.TYPE_NAME:
         raise SchemaError(f"topic {topic!r}: cannot publish {type(msg).__name__}, not a registered Message")
     buffers: list[np.ndarray] = []
+    fields = _to_wire(msg, buffers)
+    if seq is not None:
+        fields["header"]["seq"] = seq
     meta = {"type": msg.TYPE_NAME, "version": msg.VERSION, "publisher": publisher,
-            "publish_ns": int(publish_ns), "fields": _to_wire(msg, buffers)}
+            "publish_ns": int(publish_ns), "fields": fields}
     return [topic.encode(), msgpack.packb(meta, use_bin_type=True), *buffers]
 
 
@@ -121,17 +128,35 @@ def _value_to_wire(spec: FieldSpec, value: Any, buffers: list[np.ndarray]) -> An
 
 
 def _from_wire(cls: type, doc: Any, buffers: list[memoryview], used: set[int], where: str) -> Any:
+    """Build ``cls`` from its wire document, checking every field against the declared schema.
+
+    The field checks of ``Struct.__post_init__`` are done here on the wire values, so the object
+    is assembled directly and only the class's semantic :meth:`~Struct.validate` runs again.
+    """
     specs = schema_of(cls)
-    if not isinstance(doc, dict) or set(doc) != {s.name for s in specs}:
-        got = sorted(doc) if isinstance(doc, dict) else type(doc).__name__
+    if not isinstance(doc, dict) or len(doc) != len(specs) or any(s.name not in doc for s in specs):
+        got = sorted(map(str, doc)) if isinstance(doc, dict) else type(doc).__name__
         raise SchemaError(f"{where}: fields {got} do not match {[s.name for s in specs]}")
-    kwargs = {s.name: _value_from_wire(s, doc[s.name], buffers, used, f"{where}.{s.name}") for s in specs}
-    return cls(**kwargs)
+    obj = object.__new__(cls)
+    dims: dict[str, int] = {}
+    for s in specs:
+        path = f"{where}.{s.name}"
+        value = doc[s.name]
+        if s.kind == "array":
+            value = _array_from_wire(s.array, value, buffers, used, path, dims)
+        else:
+            value = _value_from_wire(s, value, buffers, used, path)
+        object.__setattr__(obj, s.name, value)
+    obj.validate()
+    return obj
+
+
+_SCALAR_TYPES = {"int": int, "str": str, "bool": bool, "float": float}
 
 
 def _value_from_wire(spec: FieldSpec, value: Any, buffers, used, where: str) -> Any:
     if spec.kind == "array":
-        return _array_from_wire(value, buffers, used, where)
+        return _array_from_wire(spec.array, value, buffers, used, where, {})
     if spec.kind == "struct":
         return _from_wire(spec.struct, value, buffers, used, where)
     if spec.kind == "tuple":
@@ -140,23 +165,30 @@ def _value_from_wire(spec: FieldSpec, value: Any, buffers, used, where: str) -> 
         return tuple(_value_from_wire(spec.item, v, buffers, used, f"{where}[{i}]") for i, v in enumerate(value))
     if spec.kind == "float" and type(value) in (int, float):
         return float(value)
-    if type(value) is not {"int": int, "str": str, "bool": bool, "float": float}[spec.kind]:
+    if type(value) is not _SCALAR_TYPES[spec.kind]:
         raise SchemaError(f"{where}: expected {spec.kind}, got {type(value).__name__}")
     return value
 
 
-def _array_from_wire(desc: Any, buffers, used, where: str) -> np.ndarray:
+def _array_from_wire(spec, desc: Any, buffers, used, where: str, dims: dict[str, int]) -> np.ndarray:
     if not (isinstance(desc, list) and len(desc) == 3):
         raise SchemaError(f"{where}: array descriptor must be [index, dtype, shape]")
     index, dtype, shape = desc
     if type(index) is not int or not 0 <= index < len(buffers) or index in used:
         raise SchemaError(f"{where}: buffer index {index!r} invalid or reused")
-    if not isinstance(dtype, str) or dtype not in WIRE_DTYPES:
+    dt = _DTYPES.get(dtype) if isinstance(dtype, str) else None
+    if dt is None:
         raise SchemaError(f"{where}: dtype {dtype!r} not allowed on the wire")
     if not (isinstance(shape, list) and len(shape) <= MAX_RANK
             and all(type(d) is int and d >= 0 for d in shape)):
         raise SchemaError(f"{where}: shape {shape!r} malformed")
-    dt = np.dtype(dtype)
+    if dt not in spec.dtype_set:
+        raise SchemaError(f"{where}: dtype {dt.name} not in {spec.describe()}")
+    if len(shape) != len(spec.shape):
+        raise SchemaError(f"{where}: shape {shape} has rank {len(shape)}, expected {spec.describe()}")
+    for size, want in zip(shape, spec.shape):
+        if (isinstance(want, int) and size != want) or (isinstance(want, str) and dims.setdefault(want, size) != size):
+            raise SchemaError(f"{where}: shape {shape} does not match {spec.describe()}")
     buf = buffers[index]
     if math.prod(shape) * dt.itemsize != buf.nbytes:
         raise SchemaError(f"{where}: buffer has {buf.nbytes} bytes, shape {shape} of {dt.name} needs "

@@ -57,6 +57,7 @@ class NodeRuntime:
         self.queues = {i["name"]: InputQueue(i["name"], i["policy"], i["queue_size"])
                        for i in spec["inputs"] if "topic" in i}
         self.open_inputs = set(self.queues)
+        self.callback_names = {name: f"on_input:{name}" for name in self.queues}
         self.topics = {name: out["topic"] for name, out in spec["outputs"].items()}
         self.node: Node | None = None
         self.node_cls = resolve_node(spec["node"])
@@ -172,8 +173,9 @@ class NodeRuntime:
                     return
             name, msg, closed = self._next_message()
             if name is not None:
-                with self.timings.time(f"on_input:{name}"):
-                    self.node.on_input(name, msg)
+                t0 = time.perf_counter()
+                self.node.on_input(name, msg)
+                self.timings.add(self.callback_names[name], time.perf_counter() - t0)
             for c in closed:
                 self.node.on_input_closed(c)
             if self.queues and not self.open_inputs:
@@ -187,8 +189,10 @@ class NodeRuntime:
                 head = q.head_arrival()
                 if head is not None and (best is None or head < best.head_arrival()):
                     best = q
-            closed = [n for n in self.open_inputs if self.queues[n].eos and not self.queues[n].items]
-            self.open_inputs.difference_update(closed)
+            closed = ()
+            if self.receiver.eos_seen:
+                closed = [n for n in self.open_inputs if self.queues[n].eos and not self.queues[n].items]
+                self.open_inputs.difference_update(closed)
             if best is not None:
                 was_full = best.policy == "block" and best.full
                 msg = best.pop()

@@ -61,9 +61,7 @@ class Publisher:
         """Send ``msg`` on ``topic`` with the next seq; waits under backpressure until sent or stopped."""
         seq = self.seq[topic]
         self.seq[topic] = seq + 1
-        if msg.header.seq != seq:
-            msg = _with_seq(msg, seq)
-        frames = wire.encode(topic, msg, self.publisher_id, time.time_ns())
+        frames = wire.encode(topic, msg, self.publisher_id, time.time_ns(), seq=seq)
         self._send(frames, should_stop)
         self.published[topic] += 1
 
@@ -109,17 +107,6 @@ class Publisher:
         self.sock.close()
 
 
-def _with_seq(msg: Message, seq: int) -> Message:
-    import dataclasses
-
-    header = dataclasses.replace(msg.header, seq=seq)
-    new = object.__new__(type(msg))  # skip re-validating unchanged fields
-    for f in dataclasses.fields(msg):
-        object.__setattr__(new, f.name, getattr(msg, f.name))
-    object.__setattr__(new, "header", header)
-    return new
-
-
 @dataclass(frozen=True)
 class InputWire:
     """Where one input reads from."""
@@ -140,6 +127,7 @@ class Receiver(threading.Thread):
         self.queues = queues
         self.max_bytes = max_bytes
         self.stopping = False
+        self.eos_seen = False  # set once any input has reached end of stream
         self.arrivals = 0
         self.wake = zctx.socket(zmq.PAIR)
         self.wake.bind(wake_endpoint)
@@ -148,9 +136,11 @@ class Receiver(threading.Thread):
             s = zctx.socket(zmq.SUB)
             s.setsockopt(zmq.RCVHWM, BLOCK_RECV_HWM if queues[w.name].policy == "block" else DROP_RECV_HWM)
             s.setsockopt(zmq.LINGER, 0)
+            s.setsockopt(zmq.MAXMSGSIZE, max_bytes)  # refuse oversized frames before allocating them
             s.connect(w.endpoint)
             s.setsockopt(zmq.SUBSCRIBE, w.topic.encode())
             self.socks[s] = w
+        self.topic_bytes = {s: w.topic.encode() for s, w in self.socks.items()}
         self.pending: dict[zmq.Socket, tuple] = {}
 
     def run(self) -> None:
@@ -170,12 +160,10 @@ class Receiver(threading.Thread):
 
     def _receive(self, sock: zmq.Socket, poller: zmq.Poller) -> None:
         w = self.socks[sock]
-        while sock not in self.pending:
-            try:
-                frames = sock.recv_multipart(zmq.NOBLOCK, copy=False)
-            except zmq.Again:
-                return
-            if frames[0].bytes != w.topic.encode():
+        topic = self.topic_bytes[sock]
+        while sock not in self.pending and sock.get(zmq.EVENTS) & zmq.POLLIN:
+            frames = sock.recv_multipart(copy=False)
+            if frames[0].bytes != topic:
                 continue  # prefix match of another topic
             if wire.is_eos(frames):
                 self._push(w.name, (EOS_MARK, None))
@@ -201,6 +189,7 @@ class Receiver(threading.Thread):
             q = self.queues[name]
             if item[0] is EOS_MARK:
                 q.eos = True
+                self.eos_seen = True
             else:
                 self.arrivals += 1
                 if not q.push(self.arrivals, item[0], item[1]):
