@@ -9,6 +9,8 @@ BUILTIN: dict[str, str] = {
     "pattern_source": "probeless.nodes.demo.pattern:PatternSource",
     "image_transform": "probeless.nodes.demo.transform:ImageTransform",
     "summary_sink": "probeless.nodes.demo.summary:SummarySink",
+    "bag_recorder": "probeless.nodes.bag.recorder:BagRecorder",
+    "bag_player": "probeless.nodes.bag.player:BagPlayer",
     "bench_source": "probeless.tools.bench_nodes:BenchSource",
     "bench_sink": "probeless.tools.bench_nodes:BenchSink",
 }

@@ -6,6 +6,7 @@ import argparse
 import sys
 from typing import Any
 
+from probeless.bag.run import add_record_options, add_replay_options
 from probeless.errors import GraphError, GraphErrors, ProbelessError
 
 
@@ -31,11 +32,34 @@ def cmd_check(ns: argparse.Namespace) -> int:
 
 
 def cmd_launch(ns: argparse.Namespace) -> int:
-    from probeless.launch.launcher import Launcher, load_checked
+    from probeless.bag.run import prepare_graph
+    from probeless.launch.launcher import Launcher
 
-    graph = load_checked(ns.graph, parse_overrides(ns.args))
-    launcher = Launcher(graph, only=ns.only, duration=ns.duration, ready_timeout=ns.ready_timeout)
+    graph, clock = prepare_graph(ns, parse_overrides(ns.args))
+    launcher = Launcher(graph, only=ns.only, duration=ns.duration, ready_timeout=ns.ready_timeout, clock_node=clock)
     return launcher.run()
+
+
+def cmd_bag(ns: argparse.Namespace) -> int:
+    from probeless.bag import run
+
+    if ns.bag_command == "record":
+        return run.cmd_record(ns, parse_overrides(ns.args))
+    if ns.bag_command == "play":
+        return run.cmd_play(ns)
+    from probeless.bag import cli as bag_cli
+
+    return bag_cli.cmd_info(ns) if ns.bag_command == "info" else bag_cli.cmd_export(ns)
+
+
+def cmd_test(ns: argparse.Namespace) -> int:
+    from probeless.bag.run import cmd_test as run_test
+
+    return run_test(ns, parse_overrides(ns.args))
+
+
+def cmd_topic(ns: argparse.Namespace) -> int:
+    return ns.topic_func(ns)
 
 
 def cmd_graph(ns: argparse.Namespace) -> int:
@@ -59,6 +83,31 @@ def cmd_bench(ns: argparse.Namespace) -> int:
     raise ProbelessError(f"unknown benchmark {ns.what!r}")
 
 
+def _add_bag_parsers(sub) -> None:
+    from probeless.bag.cli import add_export_parser, add_info_parser
+
+    bag = sub.add_parser("bag", help="record, replay and inspect MCAP recordings")
+    bags = bag.add_subparsers(dest="bag_command", required=True)
+    c = bags.add_parser("record", help="record topics of a running graph, or launch a graph and record it")
+    c.add_argument("topics", nargs="*", metavar="TOPIC", help="topics to record (default: all)")
+    c.add_argument("-o", "--output", required=True, metavar="OUT.mcap")
+    c.add_argument("--all", action="store_true", help="record every topic (the default without TOPICs)")
+    c.add_argument("--graph", metavar="G.yaml", help="launch this graph and record it")
+    c.add_argument("--graph-dir", help="run directory of the running graph to record (default: the newest)")
+    c.add_argument("--duration", type=float, help="stop after S seconds")
+    c.add_argument("--arg", dest="args", action="append", default=[], metavar="name:=value",
+                   help="graph argument (with --graph)")
+    add_record_options(c)
+    c.set_defaults(func=cmd_bag)
+    c = bags.add_parser("play", help="publish a recording with its original timing")
+    c.add_argument("bag")
+    c.add_argument("--topics", nargs="+", metavar="TOPIC", help="recorded topics to play (default: all)")
+    add_replay_options(c)
+    c.set_defaults(func=cmd_bag)
+    for add in (add_info_parser, add_export_parser):
+        add(bags).set_defaults(func=cmd_bag)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="probeless", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
@@ -74,7 +123,31 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--duration", type=float, help="stop the graph cleanly after S seconds")
     c.add_argument("--only", metavar="HOST", help="start only the nodes of this host (name or ADDRESS:PORT)")
     c.add_argument("--ready-timeout", type=float, default=60.0, help="seconds to wait for all nodes to be ready")
+    g = c.add_argument_group("record and replay")
+    g.add_argument("--record", metavar="OUT.mcap", help="record every topic (or --record-topics) to an MCAP file")
+    g.add_argument("--record-topics", dest="topics", nargs="+", metavar="TOPIC", help="topics to record")
+    g.add_argument("--replay", metavar="IN.mcap", help="recorded topics stand in for the nodes that produced them")
+    g.add_argument("--replace", metavar="ID1,ID2", help="nodes to replace by the replay (default: every node "
+                                                        "whose outputs are all in the recording)")
+    add_replay_options(g, prefix="replay-")
+    add_record_options(g)
     c.set_defaults(func=cmd_launch)
+
+    _add_bag_parsers(sub)
+
+    c = sub.add_parser("test", help="lockstep replay through a graph; compare its outputs with a golden recording")
+    c.add_argument("graph")
+    c.add_argument("args", nargs="*", metavar="name:=value")
+    c.add_argument("--bag", required=True, metavar="IN.mcap", help="recorded inputs")
+    c.add_argument("--golden", required=True, metavar="OUT.mcap", help="expected outputs (written if missing)")
+    c.add_argument("--tolerance", type=float, default=1e-6, help="absolute tolerance for float values")
+    c.add_argument("--rtol", type=float, default=0.0, help="relative tolerance for float values")
+    c.add_argument("--update-golden", action="store_true", help="overwrite the golden recording")
+    c.set_defaults(func=cmd_test)
+
+    from probeless.topic_tools import add_topic_parser
+
+    add_topic_parser(sub)
 
     c = sub.add_parser("graph", help="draw a launch graph: nodes, topics, message types")
     c.add_argument("graph")
@@ -101,6 +174,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{len(exc.errors)} error(s)", file=sys.stderr)
         return 2
     except ProbelessError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:  # malformed option values (e.g. --remap without :=)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -56,3 +56,7 @@ class NodeError(ProbelessError):
 
 class TransportError(ProbelessError):
     """A socket could not be bound or connected, or the bus is shut down."""
+
+
+class BagError(ProbelessError):
+    """A recording cannot be read or written (not MCAP, corrupt, truncated, would overwrite, ...)."""

@@ -78,6 +78,7 @@ class NodeDecl:
     max_restarts: int = 3
     restart_backoff_s: float = 0.5
     host: str | None = None
+    topics: dict[str, str] = field(default_factory=dict)  # output -> topic, when not "<id>/<output>"
 
 
 @dataclass

@@ -14,10 +14,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+import msgpack
 import zmq
 
 from probeless.errors import GraphErrors, ProbelessError
 from probeless.launch.graph import parse_graph
+from probeless.launch.lockstep import QuiescenceCheck
 from probeless.launch.plan import build_plan, new_run_dir
 from probeless.launch.validate import validate
 
@@ -55,7 +57,8 @@ class Launcher:
     """Supervises the node processes of one graph (or of one host's share of it)."""
 
     def __init__(self, graph, *, only: str | None = None, duration: float | None = None,
-                 ready_timeout: float = 60.0, kill_timeout: float = 5.0, out: IO[str] = sys.stdout):
+                 ready_timeout: float = 60.0, kill_timeout: float = 5.0, out: IO[str] = sys.stdout,
+                 clock_node: str | None = None):
         self.graph = graph
         self.duration = duration
         self.ready_timeout = ready_timeout
@@ -63,7 +66,7 @@ class Launcher:
         self.out = out
         self.print_lock = threading.Lock()
         self.run_dir = new_run_dir()
-        self.plan = build_plan(graph, self.run_dir)
+        self.plan = build_plan(graph, self.run_dir, clock_node=clock_node)
         (self.run_dir / "graph.json").write_text(json.dumps(self.plan, indent=1))
         selected = [n for n in self.plan["nodes"].values() if only is None or n["host"] == only]
         if only is not None and not selected:
@@ -124,14 +127,17 @@ class Launcher:
     def _supervise(self, ctl: zmq.Socket) -> None:
         t0 = time.monotonic()
         started = False
+        self.quiescence: QuiescenceCheck | None = None
         while not self.stopping:
-            if ctl.poll(50):
-                ident, body = ctl.recv_multipart()
-                child = self.children.get(ident.decode())
-                if child is not None and body == b"ready":
+            if ctl.poll(1 if self.quiescence is not None else 50):
+                parts = ctl.recv_multipart()
+                child = self.children.get(parts[0].decode())
+                if child is not None and parts[1] == b"ready":
                     child.ready = True
                     if started:
-                        ctl.send_multipart([ident, b"start"])
+                        ctl.send_multipart([parts[0], b"start"])
+                elif child is not None:
+                    self._on_lockstep(ctl, child.node_id, parts[1:])
             if not started and all(c.ready for c in self.children.values()):
                 started = True
                 self.log(f"{len(self.children)} node(s) ready in {time.monotonic() - t0:.2f} s, starting")
@@ -142,8 +148,35 @@ class Launcher:
                 self.log(f"not ready after {self.ready_timeout:.0f} s: {', '.join(waiting)}")
                 self.failed += waiting
                 return
+            if self.quiescence is not None and any(
+                    self.children[n].proc.poll() is not None for n in self.quiescence.expected):
+                self._collect(ctl)  # a node ended mid-collect: collect again without it
             if self._reap() or (self.duration is not None and started and time.monotonic() - t0 > self.duration):
                 return
+
+    def _on_lockstep(self, ctl: zmq.Socket, node_id: str, parts: list[bytes]) -> None:
+        """Quiescence requests of a lockstep player and the status replies they trigger."""
+        if parts[0] == b"quiesce":
+            self.quiescence = QuiescenceCheck(self.plan, node_id, msgpack.unpackb(parts[1]))
+            self._collect(ctl)
+        elif parts[0] == b"status" and self.quiescence is not None:
+            check = self.quiescence
+            if check.add_reply(node_id, int(parts[1]), msgpack.unpackb(parts[2], strict_map_key=False)):
+                if check.quiet():
+                    self.quiescence = None
+                    ctl.send_multipart([check.requester.encode(), b"quiet"])
+                else:
+                    self._collect(ctl)
+
+    def _collect(self, ctl: zmq.Socket) -> None:
+        alive = [c.node_id for c in self.children.values() if c.proc is not None and c.proc.poll() is None]
+        asked = self.quiescence.begin_round(alive)
+        if not asked:
+            requester = self.quiescence.requester
+            self.quiescence = None
+            ctl.send_multipart([requester.encode(), b"quiet"])
+        for node_id in asked:
+            ctl.send_multipart([node_id.encode(), b"status", str(self.quiescence.round).encode()])
 
     def _reap(self) -> bool:
         """Handle exited children; True when the graph is over (all ended, or a failure)."""

@@ -20,8 +20,11 @@ def new_run_dir() -> Path:
     return Path(tempfile.mkdtemp(prefix=time.strftime("%H%M%S-"), dir=base))
 
 
-def build_plan(graph: Graph, run_dir: Path) -> dict[str, Any]:
-    """JSON-serialisable plan of a validated graph (``graph.node_classes`` filled by validate)."""
+def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> dict[str, Any]:
+    """JSON-serialisable plan of a validated graph (``graph.node_classes`` filled by validate).
+
+    ``clock_node`` (a replay's player) publishes ``<clock_node>/clock``; every other node follows it.
+    """
     endpoints = {}
     for index, decl in enumerate(graph.nodes.values()):
         endpoints[decl.id] = host_endpoint(graph, decl) or f"ipc://{run_dir}/{index}.pub"
@@ -36,7 +39,7 @@ def build_plan(graph: Graph, run_dir: Path) -> dict[str, Any]:
                 entry["timer_period_ns"] = inp.timer_period_ns
             else:
                 src_id, out = split_source(graph, inp.source)
-                topic = f"{src_id}/{out}"
+                topic = graph.nodes[src_id].topics.get(out, f"{src_id}/{out}")
                 _, typ = output_type(graph.node_classes[src_id], out)
                 entry.update(topic=topic, source_node=src_id, output=out, endpoint=endpoints[src_id],
                              type_name=typ.TYPE_NAME if typ is not None else None)
@@ -47,14 +50,21 @@ def build_plan(graph: Graph, run_dir: Path) -> dict[str, Any]:
                           "file": decl.file, "line": decl.line, "endpoint": endpoints[decl.id],
                           "host": decl.host, "inputs": inputs, "restart": decl.restart,
                           "max_restarts": decl.max_restarts, "restart_backoff_s": decl.restart_backoff_s,
-                          "outputs": {o: {"topic": f"{decl.id}/{o}"} for o in names}}
+                          "outputs": {o: {"topic": decl.topics.get(o, f"{decl.id}/{o}")} for o in names}}
     for node in nodes.values():
         for inp in node["inputs"]:
             if "topic" in inp:
                 node_out = nodes[inp["source_node"]]["outputs"].setdefault(inp["output"], {"topic": inp["topic"]})
                 node_out["subscribers"] = subscribers[inp["topic"]]
+    if clock_node is not None:
+        clock_topic = f"{clock_node}/clock"
+        followers = [n for n in nodes.values() if n["id"] != clock_node]
+        for node in followers:
+            node["clock"] = {"topic": clock_topic, "endpoint": endpoints[clock_node], "source_node": clock_node}
+        nodes[clock_node]["outputs"]["clock"] = {"topic": clock_topic, "subscribers": len(followers)}
     for node in nodes.values():
         for out in node["outputs"].values():
             out.setdefault("subscribers", 0)
-    return {"file": graph.file, "args": graph.args, "run_dir": str(run_dir),
+    return {"file": graph.file, "args": graph.args, "run_dir": str(run_dir), "launcher_pid": os.getpid(),
+            "started_ns": time.time_ns(),
             "control": f"ipc://{run_dir}/control", "nodes": nodes}

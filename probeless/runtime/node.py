@@ -15,7 +15,9 @@
 
 ``INPUTS`` maps input names to message classes (``None`` = any type; key ``"*"`` = any name).
 ``OUTPUTS`` maps output names to message classes; a key ending in ``/*`` declares a family
-(``"envmap/*"`` allows ``envmap/sphere``). Every node also has the implicit output
+(``"envmap/*"`` allows ``envmap/sphere``), and ``"*"`` allows any name (a bag player).
+``RAW_INPUTS = True`` delivers :class:`~probeless.runtime.receiver.RawMessage` (the frames as
+received, envelope peeked, nothing decoded): for recorders. Every node also has the implicit output
 ``diagnostics`` (NodeStatus at 1 Hz).
 """
 
@@ -53,6 +55,8 @@ class Context(Protocol):
     def now_ns(self) -> int:
         """Current time [ns]: wall clock live, recorded time on replay."""
 
+    simulated_time: bool  # True while following a replay's recorded clock
+
     def stop(self) -> None:
         """Finish after the current callback: close, end-of-stream on outputs, exit 0."""
 
@@ -64,7 +68,8 @@ class Node:
     """Base class of every node. Override what you need; all hooks run on the node's one thread."""
 
     INPUTS: ClassVar[dict[str, type[Message] | None]] = {}
-    OUTPUTS: ClassVar[dict[str, type[Message]]] = {}
+    OUTPUTS: ClassVar[dict[str, type[Message] | None]] = {}
+    RAW_INPUTS: ClassVar[bool] = False
     Params: ClassVar[type] = NoParams
 
     def __init__(self, ctx: Context, params: Any):
@@ -101,6 +106,8 @@ def output_type(cls: type[Node], name: str) -> tuple[bool, type[Message] | None]
         return True, NodeStatus
     if name in cls.OUTPUTS:
         return True, cls.OUTPUTS[name]
+    if "*" in cls.OUTPUTS:
+        return True, cls.OUTPUTS["*"]
     for pattern, typ in cls.OUTPUTS.items():
         if pattern.endswith("/*") and fnmatch.fnmatchcase(name, pattern) and "/" not in name[len(pattern) - 1:]:
             return True, typ

@@ -1,6 +1,6 @@
 """One node process: ``python -m probeless.runtime.process RUN_DIR NODE_ID``.
 
-Lifecycle: load the resolved graph spec from RUN_DIR, build the node, ``setup()``, bind outputs,
+Lifecycle: load the resolved graph plan from RUN_DIR, build the node, ``setup()``, bind outputs,
 connect inputs, wait until every expected subscriber of every output is connected (readiness
 barrier), report ready to the launcher, wait for start, then run callbacks on this thread until
 the inputs end, the node stops itself, or SIGINT/SIGTERM. ``close()`` always runs; outputs get an
@@ -21,64 +21,91 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable
 
+import msgpack
 import zmq
 
 from probeless.errors import TransportError
 from probeless.messages.base import Message
 from probeless.messages.diagnostics import InputCounters, NodeStatus
 from probeless.messages.header import Header, Tick
+from probeless.runtime.clock import NodeClock
 from probeless.runtime.node import Node, output_type
 from probeless.runtime.params import load_params
 from probeless.runtime.queues import InputQueue
+from probeless.runtime.receiver import InputWire, Receiver
 from probeless.runtime.registry import resolve_node
 from probeless.runtime.stats import Timings
 from probeless.runtime.timers import TimerSet
-from probeless.runtime.transport import InputWire, Publisher, Receiver
+from probeless.runtime.transport import Publisher
 
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
+CLOCK_INPUT = "__clock__"
 
 
 class NodeRuntime:
     """Runs one node; implements the :class:`~probeless.runtime.node.Context` it is given."""
 
-    def __init__(self, spec: dict[str, Any], control: str | None, wake_endpoint: str):
-        self.spec = spec
-        self.node_id: str = spec["id"]
-        self.log = logging.getLogger(self.node_id)
-        self.control_endpoint = control
+    def __init__(self, plan: dict[str, Any], node_id: str, wake_endpoint: str):
+        self.plan = plan
+        self.spec = spec = plan["nodes"][node_id]
+        self.node_id = node_id
+        self.log = logging.getLogger(node_id)
+        self.control_endpoint = plan.get("control")
         self.wake_endpoint = wake_endpoint
         self.started_at = time.monotonic()
         self.timings = Timings()
-        self.timers = TimerSet()
+        self.timers, self.wall_timers = TimerSet(), TimerSet()
+        self.clock = NodeClock()
         self.cond = threading.Condition()
         self.stop_requested = False
+        self.busy = False
         self.state = "starting"
         self.zctx = zmq.Context()
-        self.queues = {i["name"]: InputQueue(i["name"], i["policy"], i["queue_size"])
-                       for i in spec["inputs"] if "topic" in i}
-        self.open_inputs = set(self.queues)
+        self.node_cls = resolve_node(spec["node"])
+        self.wires = [InputWire(i["name"], i["endpoint"], i["topic"], i.get("type_name"),
+                                raw=getattr(self.node_cls, "RAW_INPUTS", False))
+                      for i in spec["inputs"] if "topic" in i]
+        if spec.get("clock"):
+            self.wires.append(InputWire(CLOCK_INPUT, spec["clock"]["endpoint"], spec["clock"]["topic"], "core/Clock"))
+        self.queues = {w.name: InputQueue(w.name, *self._policy(w.name)) for w in self.wires}
+        self.open_inputs = set(self.queues) - {CLOCK_INPUT}
         self.callback_names = {name: f"on_input:{name}" for name in self.queues}
         self.topics = {name: out["topic"] for name, out in spec["outputs"].items()}
         self.node: Node | None = None
-        self.node_cls = resolve_node(spec["node"])
+
+    def _policy(self, name: str) -> tuple[str, int]:
+        if name == CLOCK_INPUT:
+            return "block", 64
+        spec = next(i for i in self.spec["inputs"] if i["name"] == name)
+        return spec["policy"], spec["queue_size"]
 
     # -- Context API -------------------------------------------------------
     def publish(self, output: str, msg: Message) -> None:
+        self.publisher.publish(self._topic(output), msg, lambda: self.stop_requested)
+
+    def publish_raw(self, output: str, frames: list) -> None:
+        """Publish recorded frames unchanged (replay); ``output`` must be declared."""
+        self.publisher.publish_raw(self._topic(output), frames, lambda: self.stop_requested)
+
+    def _topic(self, output: str) -> str:
         topic = self.topics.get(output)
         if topic is None:
-            declared, _ = output_type(self.node_cls, output)
-            if not declared:
+            if not output_type(self.node_cls, output)[0]:
                 raise ValueError(f"node {self.node_id!r} has no output {output!r}")
             topic = self.topics[output] = f"{self.node_id}/{output}"
-        self.publisher.publish(topic, msg, lambda: self.stop_requested)
+        return topic
 
     def create_timer(self, period_s: float, callback: Callable[[], None], name: str | None = None):
         name = name or f"timer:{getattr(callback, '__name__', 'callback')}"
-        return self.timers.add(int(period_s * 1e9), name, lambda missed: callback(),
-                               time.monotonic_ns())
+        return self.timers.add(int(period_s * 1e9), name, lambda missed: callback(), self.clock.monotonic_ns())
 
     def now_ns(self) -> int:
-        return time.time_ns()
+        return self.clock.now_ns()
+
+    @property
+    def simulated_time(self) -> bool:
+        """True while following a replay's recorded clock."""
+        return self.clock.simulated
 
     def stop(self) -> None:
         self.stop_requested = True
@@ -86,17 +113,27 @@ class NodeRuntime:
     def timed(self, stage: str):
         return self.timings.time(stage)
 
+    def wait_quiescent(self) -> bool:
+        """Block until the launcher reports every other node idle with nothing in flight (lockstep)."""
+        self.receiver.quiet.clear()
+        published = dict(self.publisher.published)
+        self.receiver.send_control(b"quiesce", msgpack.packb(published), wake_tx=self.wake_tx)
+        while not self.stop_requested:
+            if self.receiver.quiet.wait(0.1):
+                return True
+        return False
+
     # -- lifecycle -----------------------------------------------------------
     def run(self) -> int:
         ok = False
         try:
             params = load_params(self.node_cls.Params, self.spec.get("params"), node_id=self.node_id,
                                  file=self.spec.get("file"), line=self.spec.get("line"))
-            self.publisher = Publisher(self.zctx, self.spec["endpoint"], self.node_id)
+            self.publisher = Publisher(self.zctx, self.spec["endpoint"], self.node_id, self.clock.now_ns)
             self.node = self.node_cls(self, params)
             with self.timed("setup"):
                 self.node.setup()
-            self.receiver = self._start_receiver()
+            self._start_receiver()
             if not self._barrier():
                 return self._finish(eos=False, code=0)
             self._add_builtin_timers()
@@ -110,14 +147,21 @@ class NodeRuntime:
             self.log.error("node crashed:\n%s", traceback.format_exc().rstrip())
         return self._finish(eos=ok, code=0 if ok or self.stop_requested else 1)
 
-    def _start_receiver(self) -> Receiver:
-        wires = [InputWire(i["name"], i["endpoint"], i["topic"], i.get("type_name"))
-                 for i in self.spec["inputs"] if "topic" in i]
-        receiver = Receiver(self.zctx, wires, self.queues, self.cond, self.wake_endpoint)
+    def _start_receiver(self) -> None:
+        control = (self.control_endpoint, self.node_id) if self.control_endpoint else None
+        self.receiver = Receiver(self.zctx, self.wires, self.queues, self.cond, self.wake_endpoint,
+                                 control=control, status=self._status)
         self.wake_tx = self.zctx.socket(zmq.PAIR)
         self.wake_tx.connect(self.wake_endpoint)
-        receiver.start()
-        return receiver
+        self.receiver.start()
+
+    def _status(self) -> dict:
+        """Snapshot for the launcher's lockstep quiescence check (runs on the receiver thread)."""
+        with self.cond:
+            queued = sum(len(q.items) for q in self.queues.values()) + len(self.receiver.pending)
+            received = {n: q.received + q.invalid for n, q in self.queues.items()}
+            return {"busy": self.busy, "queued": queued, "received": received,
+                    "published": dict(self.publisher.published)}
 
     def _barrier(self) -> bool:
         """Wait for all expected subscribers, report ready, wait for start. False if stopped first."""
@@ -134,26 +178,20 @@ class NodeRuntime:
                               ", ".join(f"{t} ({self.publisher.subscriptions[t]}/{n})" for t, n in missing.items()))
         if self.stop_requested or not self.control_endpoint:
             return not self.stop_requested
-        ctl = self.zctx.socket(zmq.DEALER)
-        ctl.setsockopt(zmq.IDENTITY, self.node_id.encode())
-        ctl.setsockopt(zmq.LINGER, 0)
-        ctl.connect(self.control_endpoint)
-        ctl.send(b"ready")
-        try:
-            while not self.stop_requested:
-                if ctl.poll(100) and ctl.recv() == b"start":
-                    return True
-            return False
-        finally:
-            ctl.close()
+        self.receiver.send_control(b"ready", wake_tx=self.wake_tx)
+        while not self.stop_requested:
+            if self.receiver.started.wait(0.1):
+                return True
+        return False
 
     def _add_builtin_timers(self) -> None:
-        now = time.monotonic_ns()
+        now = self.clock.monotonic_ns()
         for i in self.spec["inputs"]:
             if "timer_period_ns" in i:
                 self.timers.add(i["timer_period_ns"], f"on_input:{i['name']}",
                                 self._tick_fn(i["name"], i["timer_period_ns"]), now - i["timer_period_ns"])
-        self.timers.add(DIAGNOSTICS_PERIOD_NS, "_diagnostics", lambda missed: self._publish_diagnostics(), now)
+        self.wall_timers.add(DIAGNOSTICS_PERIOD_NS, "_diagnostics", lambda missed: self._publish_diagnostics(),
+                             time.monotonic_ns())
 
     def _tick_fn(self, name: str, period_ns: int) -> Callable[[int], None]:
         def fire(missed: int) -> None:
@@ -162,24 +200,33 @@ class NodeRuntime:
 
     def _loop(self) -> None:
         while not self.stop_requested:
-            now = time.monotonic_ns()
-            for timer, missed in self.timers.pop_due(now):
-                if timer.name == "_diagnostics":
-                    timer.fire(missed)
-                else:
-                    with self.timings.time(timer.name):
-                        timer.fire(missed)
+            for timer, missed in self.wall_timers.pop_due(time.monotonic_ns()):
+                timer.fire(missed)
+            for timer, missed in self.timers.pop_due(self.clock.monotonic_ns()):
+                t0 = time.perf_counter()
+                timer.fire(missed)
+                self.timings.add(timer.name, time.perf_counter() - t0)
                 if self.stop_requested:
                     return
             name, msg, closed = self._next_message()
-            if name is not None:
+            if name == CLOCK_INPUT:
+                self._on_clock(msg)
+            elif name is not None:
                 t0 = time.perf_counter()
                 self.node.on_input(name, msg)
                 self.timings.add(self.callback_names[name], time.perf_counter() - t0)
+            self.busy = False
             for c in closed:
                 self.node.on_input_closed(c)
-            if self.queues and not self.open_inputs:
+            if self.queues.keys() - {CLOCK_INPUT} and not self.open_inputs:
                 return
+
+    def _on_clock(self, msg) -> None:
+        if self.clock.update(msg):
+            self.timers.reset(self.clock.monotonic_ns())
+            hook = getattr(self.node, "on_time_reset", None)
+            if hook is not None:
+                hook()
 
     def _next_message(self):
         """Pop the oldest queued message across inputs, or wait until one arrives or a timer is due."""
@@ -196,21 +243,27 @@ class NodeRuntime:
             if best is not None:
                 was_full = best.policy == "block" and best.full
                 msg = best.pop()
+                self.busy = True  # under the lock: a status snapshot never sees popped-but-idle
                 if was_full:
                     self.wake_tx.send(b"")
                 return best.name, msg, closed
             if not closed:
-                deadline = self.timers.next_deadline()
-                wait = 0.1 if deadline is None else max(0.0, (deadline - time.monotonic_ns()) / 1e9)
-                if wait > 0:
-                    self.cond.wait(min(wait, 0.1))
+                self.cond.wait(self._wait_s())
             return None, None, closed
+
+    def _wait_s(self) -> float:
+        deadlines = [d for d in (self.wall_timers.next_deadline(),) if d is not None]
+        wall = [(d - time.monotonic_ns()) / 1e9 for d in deadlines]
+        nxt = self.timers.next_deadline()
+        if nxt is not None and not self.clock.simulated:
+            wall.append((nxt - time.monotonic_ns()) / 1e9)
+        return max(0.0, min(wall + [0.1]))
 
     def _publish_diagnostics(self) -> None:
         with self.cond:
             inputs = tuple(InputCounters(q.name, self._input_topic(q.name), q.policy, q.queue_size,
                                          len(q.items), q.received, q.dropped, q.seq_gaps, q.invalid)
-                           for q in self.queues.values())
+                           for q in self.queues.values() if q.name != CLOCK_INPUT)
         self.publisher.poll_subscriptions(0)
         status = NodeStatus(Header(self.now_ns(), self.node_id), self.node_id, self.state,
                             time.monotonic() - self.started_at, self.timings.report(), inputs,
@@ -218,7 +271,7 @@ class NodeRuntime:
         self.publisher.publish(f"{self.node_id}/diagnostics", status, lambda: self.stop_requested)
 
     def _input_topic(self, name: str) -> str:
-        return next(i["topic"] for i in self.spec["inputs"] if i["name"] == name)
+        return next(w.topic for w in self.wires if w.name == name)
 
     def _end_streams(self) -> None:
         """Final status, end-of-stream on every output, then wait for subscribers to drain.
@@ -261,11 +314,10 @@ class NodeRuntime:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     run_dir, node_id = Path(argv[0]), argv[1]
-    graph = json.loads((run_dir / "graph.json").read_text())
-    spec = graph["nodes"][node_id]
+    plan = json.loads((run_dir / "graph.json").read_text())
     logging.basicConfig(level=os.environ.get("PROBELESS_LOG", "INFO"), stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")
-    runtime = NodeRuntime(spec, graph.get("control"), f"inproc://wake-{spec['index']}")
+    runtime = NodeRuntime(plan, node_id, f"inproc://wake-{plan['nodes'][node_id]['index']}")
 
     def on_signal(signum, frame):
         runtime.stop_requested = True

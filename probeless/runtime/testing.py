@@ -23,6 +23,9 @@ class RecordingContext:
         self.clock_ns = clock_ns
         self.stopped = False
         self.timings = Timings()
+        self.plan: dict = {}
+        self.simulated_time = False
+        self.raw_published: list[tuple[str, list]] = []
 
     def publish(self, output: str, msg: Message) -> None:
         if self.node_cls is not None and not output_type(self.node_cls, output)[0]:
@@ -30,6 +33,12 @@ class RecordingContext:
         if not isinstance(msg, Message):
             raise TypeError(f"publish({output!r}): {type(msg).__name__} is not a Message")
         self.published.append((output, msg))
+
+    def publish_raw(self, output: str, frames: list) -> None:
+        self.raw_published.append((output, list(frames)))
+
+    def wait_quiescent(self) -> bool:
+        return True
 
     def create_timer(self, period_s: float, callback: Callable[[], None], name: str | None = None):
         self.timers.append((period_s, callback))

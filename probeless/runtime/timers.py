@@ -56,3 +56,9 @@ class TimerSet:
             heapq.heappush(self._heap, timer)
             due.append((timer, missed))
         return due
+
+    def reset(self, now_ns: int) -> None:
+        """Reschedule every timer one period after ``now_ns`` (time base changed or jumped)."""
+        for timer in self._heap:
+            timer.deadline_ns = now_ns + timer.period_ns
+        heapq.heapify(self._heap)

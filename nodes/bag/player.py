@@ -1,0 +1,135 @@
+"""Bag player node: publishes a recording's messages bit-exact, in log-time order, with its timing.
+
+Timing: message i is due at ``t0 + (log_time_i - log_time_0) / rate``. When the machine falls
+behind by more than ``max_lag_s`` the schedule shifts (all topics slow down together; nothing is
+reordered or skipped). ``lockstep`` publishes the next message only when every other node has
+finished with the previous one (the launcher's quiescence check), so outputs are deterministic;
+``rate: 0`` means lockstep as fast as possible. A ``core/Clock`` on output ``clock`` carries the
+recorded time to every node of the graph; its ``epoch`` grows at each loop.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Iterator
+
+from probeless.bag.reader import BagMessage, BagReader
+from probeless.messages.header import Clock, Header
+from probeless.runtime import Node, param
+
+CLOCK_PERIOD_NS = 10_000_000
+
+
+def parse_remaps(remaps: tuple[str, ...]) -> dict[str, str]:
+    """``("a:=b", ...)`` -> ``{"a": "b"}``; ValueError on a malformed item."""
+    out = {}
+    for item in remaps:
+        src, sep, dst = item.partition(":=")
+        if not sep or not src or not dst:
+            raise ValueError(f"remap {item!r} is not of the form from:=to")
+        out[src] = dst
+    return out
+
+
+class BagPlayer(Node):
+    """Publishes the messages of an MCAP recording on their (remapped) topics."""
+
+    OUTPUTS = {"*": None, "clock": Clock}
+
+    @dataclass(frozen=True)
+    class Params:
+        path: str = param(doc="recording to play (.mcap)")
+        rate: float = param(1.0, min=0.0, max=1000.0, doc="speed factor; 0 = as fast as possible without loss")
+        loop: bool = param(False, doc="start again at the end")
+        lockstep: bool = param(False, doc="publish each message only after the graph has processed the last")
+        start_s: float = param(0.0, min=0.0, doc="skip this much of the recording [s]")
+        duration_s: float = param(0.0, min=0.0, doc="play only this much [s]; 0 = to the end")
+        topics: tuple[str, ...] = param((), doc="recorded topics to play; empty = all")
+        remap: tuple[str, ...] = param((), doc="topic renames, from:=to")
+        max_lag_s: float = param(0.05, min=0.0, doc="lag beyond which the schedule shifts [s]")
+
+    def setup(self) -> None:
+        p = self.params
+        self.remap = parse_remaps(p.remap)
+        self.reader = BagReader(p.path)
+        if self.reader.truncated:
+            self.ctx.log.warning("%s: %s", p.path, self.reader.truncation_note)
+        recorded = self.reader.topics()
+        missing = [t for t in p.topics if t not in recorded]
+        if missing:
+            raise ValueError(f"{p.path}: no topic(s) {missing} in the recording (has: {sorted(recorded)})")
+        self.topics = list(p.topics) or sorted(recorded)
+        self.lockstep = p.lockstep or p.rate == 0
+        self.epoch = 0
+        self.published = 0
+        self.last_clock_ns: int | None = None
+        self.timer = self.ctx.create_timer(0.001, self._step, name="play")
+        self._restart()
+
+    def _restart(self) -> None:
+        p = self.params
+        start = self.reader.start_ns + int(p.start_s * 1e9)
+        end = start + int(p.duration_s * 1e9) if p.duration_s else None
+        self.messages: Iterator[BagMessage] = self.reader.messages(topics=self.topics, start_ns=start, end_ns=end)
+        self.pending: BagMessage | None = None
+        self.t0: float | None = None
+        self.first_log_ns = start
+
+    def _step(self) -> None:
+        """Publish every message that is due; sleep precisely for one that is due within 2 ms."""
+        rate = self.params.rate
+        while True:
+            if self.pending is None:
+                self.pending = next(self.messages, None)
+                if self.pending is None:
+                    self._at_end()
+                    return
+            msg = self.pending
+            now = time.monotonic()
+            if self.t0 is None:
+                self.t0 = now - (msg.log_time_ns - self.first_log_ns) / 1e9 / (rate or 1)
+            if rate > 0:
+                due = self.t0 + (msg.log_time_ns - self.first_log_ns) / 1e9 / rate
+                if due - now > 0.002:
+                    self._tick_clock(now, rate)
+                    return
+                if due > now:
+                    time.sleep(due - now)
+                elif now - due > self.params.max_lag_s:
+                    self.t0 += now - due  # fell behind: slow every topic down together
+            self._publish(msg)
+            self.pending = None
+            if self.lockstep:
+                return  # one message per step: the node loop stays responsive to signals
+
+    def _publish(self, msg: BagMessage) -> None:
+        if self._clock(msg.log_time_ns) and self.lockstep:
+            self.ctx.wait_quiescent()  # every node is at the new time before the data arrives
+        self.ctx.publish_raw(self.remap.get(msg.topic, msg.topic), msg.frames[1:])
+        self.published += 1
+        if self.lockstep:
+            self.ctx.wait_quiescent()
+
+    def _tick_clock(self, now: float, rate: float) -> None:
+        sim = self.first_log_ns + int((now - self.t0) * rate * 1e9)
+        if self.last_clock_ns is None or sim - self.last_clock_ns >= CLOCK_PERIOD_NS:
+            self._clock(sim)
+
+    def _clock(self, stamp_ns: int) -> bool:
+        """Publish the recorded time if it advanced; True when a clock message went out."""
+        if self.last_clock_ns is not None and stamp_ns <= self.last_clock_ns:
+            return False
+        self.last_clock_ns = stamp_ns
+        self.ctx.publish("clock", Clock(Header(stamp_ns, "clock"), self.params.rate, self.epoch))
+        return True
+
+    def _at_end(self) -> None:
+        if not self.params.loop:
+            self.timer.cancel()
+            self.ctx.log.info("played %d message(s) from %s", self.published, self.params.path)
+            self.ctx.stop()
+            return
+        self.epoch += 1
+        self.last_clock_ns = None
+        self._restart()

@@ -1,0 +1,108 @@
+"""Bag recorder node: writes every message it receives, exactly as it crossed the wire, to MCAP.
+
+Inputs are raw (nothing decoded but the envelope), any name, any type; the launcher wires one
+``policy: block`` input per recorded topic, so the recorder never drops: if it cannot keep up,
+its publishers wait. Losses upstream still show as seq gaps; they are printed and stored in the
+file as an INCOMPLETE report (metadata ``probeless.incomplete``).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+from probeless import __version__
+from probeless.bag.writer import BagWriter
+from probeless.runtime import Node, param
+from probeless.runtime.receiver import RawMessage
+
+
+def git_revision() -> str:
+    """The repository's HEAD revision (with '+dirty'), or 'unknown' outside a git checkout."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        rev = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                             timeout=5).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (rev + ("+dirty" if dirty else "")) if rev else "unknown"
+
+
+class SeqTracker:
+    """Counts messages missing per topic from header.seq gaps (a smaller seq = publisher restart)."""
+
+    def __init__(self) -> None:
+        self.last: dict[str, int] = {}
+        self.missing: dict[str, int] = {}
+
+    def add(self, topic: str, seq: int) -> None:
+        last = self.last.get(topic)
+        if last is not None and seq > last + 1:
+            self.missing[topic] = self.missing.get(topic, 0) + seq - last - 1
+        self.last[topic] = seq
+
+    def report(self) -> dict[str, str]:
+        return {t: f"INCOMPLETE: {n} message(s) missing (seq gaps)" for t, n in sorted(self.missing.items())}
+
+
+class BagRecorder(Node):
+    """Records its raw inputs into an MCAP file (one channel per topic)."""
+
+    INPUTS = {"*": None}
+    RAW_INPUTS = True
+
+    @dataclass(frozen=True)
+    class Params:
+        path: str = param(doc="output .mcap file")
+        compression: str = param("lz4", choices=("lz4", "zstd", "none"), doc="chunk compression")
+        max_size_mb: float = param(0.0, min=0.0, doc="split into _000, _001, ... files of this size; 0 = no split")
+        max_duration_s: float = param(0.0, min=0.0, doc="split after this much recorded time; 0 = no split")
+        force: bool = param(False, doc="overwrite an existing file")
+        command: str = param("", doc="command line that started the recording (stored in the file)")
+
+    def setup(self) -> None:
+        p = self.params
+        plan = getattr(self.ctx, "plan", {}) or {}
+        meta = {"plan": json.dumps(plan), "version": __version__, "git_revision": git_revision(),
+                "command": p.command, "graph_file": str(plan.get("file", ""))}
+        self.writer = BagWriter(p.path, compression=p.compression, force=p.force,
+                                max_size=int(p.max_size_mb * 1e6) or None, max_duration_s=p.max_duration_s or None,
+                                metadata={"probeless.graph": meta})
+        self.seqs = SeqTracker()
+        self.count = 0
+        self.step: list[tuple[int, str, int, RawMessage]] = []
+
+    def on_input(self, name: str, msg: RawMessage) -> None:
+        self.seqs.add(msg.topic, msg.seq)
+        if not self.ctx.simulated_time:
+            self._write(msg, msg.recv_ns)
+            return
+        # Replay: log time is the recorded clock. Messages of one clock step are written sorted by
+        # (topic, seq), so a lockstep replay gives the same file whatever the arrival order.
+        now = self.ctx.now_ns()
+        if self.step and self.step[0][0] != now:
+            self._flush_step()
+        self.step.append((now, msg.topic, msg.seq, msg))
+
+    def _flush_step(self) -> None:
+        for log_ns, _, _, msg in sorted(self.step, key=lambda s: (s[1], s[2])):
+            self._write(msg, log_ns)
+        self.step = []
+
+    def _write(self, msg: RawMessage, log_ns: int) -> None:
+        frames = [getattr(f, "buffer", f) for f in msg.frames]
+        self.writer.write(msg.topic, msg.type_name, msg.version, frames, log_time_ns=log_ns,
+                          publish_time_ns=msg.publish_ns, sequence=msg.seq)
+        self.count += 1
+
+    def close(self) -> None:
+        self._flush_step()
+        report = self.seqs.report()
+        for topic, text in report.items():
+            self.ctx.log.warning("%s: %s", topic, text)
+        self.writer.close(extra_metadata={"probeless.incomplete": report} if report else None)
+        self.ctx.log.info("recorded %d message(s) to %s", self.count, ", ".join(map(str, self.writer.paths)))

@@ -1,0 +1,75 @@
+"""``probeless bag info`` and ``probeless bag export``: parsers and commands, wired in by probeless.cli.
+
+Each command returns the exit status: 0 on success, 2 after printing ``error: ...`` to stderr
+for a BagError (not an MCAP file, missing file, would overwrite, ...).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from probeless.errors import BagError
+
+
+def add_info_parser(sub: Any) -> argparse.ArgumentParser:
+    """Add ``info`` to the subparsers ``sub`` of ``probeless bag``."""
+    p = sub.add_parser("info", help="show what a recording holds: topics, rates, sizes, graph, gaps")
+    p.add_argument("paths", nargs="+", metavar="FILE",
+                   help="MCAP file(s); the name of a split recording (run.mcap for run_000.mcap, ...) works too")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=cmd_info)
+    return p
+
+
+def add_export_parser(sub: Any) -> argparse.ArgumentParser:
+    """Add ``export`` to the subparsers ``sub`` of ``probeless bag``."""
+    from probeless.bag.export import FORMATS
+
+    p = sub.add_parser("export", help="convert a recording: Foxglove MCAP (JSON) or a directory of PNGs")
+    p.add_argument("paths", nargs="+", metavar="FILE", help="MCAP file(s) or the name of a split recording")
+    p.add_argument("--format", choices=FORMATS, default="foxglove", help="default: foxglove")
+    p.add_argument("-o", "--out", required=True, help="output .mcap file (foxglove) or directory (png-dir)")
+    p.add_argument("--topic", action="append", dest="topics", metavar="TOPIC", help="only this topic (repeatable)")
+    p.add_argument("--force", action="store_true", help="overwrite the output")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_export)
+    return p
+
+
+def cmd_info(ns: argparse.Namespace) -> int:
+    """Print the info report of ``ns.paths`` (text, or one JSON object with ``ns.json``)."""
+    from probeless.bag.info import format_info, info_report
+
+    try:
+        report = info_report(ns.paths)
+    except BagError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps(report, indent=2) if getattr(ns, "json", False) else format_info(report))
+    return 0
+
+
+def cmd_export(ns: argparse.Namespace) -> int:
+    """Export ``ns.paths`` to ``ns.out`` in ``ns.format``; prints what was written and skipped."""
+    from probeless.bag.export import export_foxglove, export_png_dir
+
+    run = export_png_dir if ns.format == "png-dir" else export_foxglove
+    progress = not getattr(ns, "no_progress", False) and sys.stderr.isatty()
+    try:
+        summary = run(ns.paths, ns.out, force=ns.force, topics=getattr(ns, "topics", None), progress=progress)
+    except BagError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for w in summary.warnings:
+        print(f"WARNING: {w}", file=sys.stderr)
+    for topic, what in sorted(summary.schemas.items()):
+        count = summary.written.get(topic) or summary.skipped.get(topic, 0)
+        print(f"  {topic}: {count} message(s) {'-> ' + what if topic in summary.written else what}")
+    for note in summary.notes:
+        print(f"note: {note}")
+    print(f"wrote {ns.out}: {sum(summary.written.values())} message(s), "
+          f"{sum(summary.skipped.values())} skipped")
+    return 0

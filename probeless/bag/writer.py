@@ -1,0 +1,270 @@
+"""Write bus messages into MCAP files, optionally split by size or duration.
+
+Each message is stored as its wire frames (see :mod:`probeless.bag.format`); each topic is one MCAP
+channel whose schema is the JSON Schema of its message type (:mod:`probeless.bag.schema`).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from mcap.writer import CompressionType, Writer
+
+from probeless.bag.format import MESSAGE_ENCODING, PROFILE, SCHEMA_ENCODING, pack_payload, peek
+from probeless.bag.schema import json_schema
+from probeless.errors import BagError, SchemaError
+from probeless.messages.base import lookup
+
+_COMPRESSIONS = {"lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD, "none": CompressionType.NONE}
+_MESSAGE_RECORD_OVERHEAD = 31  # opcode, length, channel id, sequence, log and publish time
+
+
+def _library() -> str:
+    try:
+        from importlib.metadata import version
+        return f"probeless/{version('probeless')}"
+    except Exception:  # not installed as a distribution
+        return "probeless"
+
+
+def split_paths(path: str | Path) -> list[Path]:
+    """The existing parts ``<stem>_000.mcap``, ``<stem>_001.mcap``, ... of a split recording ``path``."""
+    path = Path(path)
+    pattern = re.compile(re.escape(path.stem) + r"_(\d{3,})" + re.escape(path.suffix or ".mcap") + "$")
+    if not path.parent.is_dir():
+        return []
+    found = [(int(m.group(1)), p) for p in path.parent.iterdir() if (m := pattern.match(p.name))]
+    return [p for _, p in sorted(found)]
+
+
+def recording_paths(paths: str | Path | Sequence[str | Path]) -> list[Path]:
+    """The files of the recordings named: each path itself, or the parts of a split recording when
+    ``path`` does not exist but ``<stem>_000.mcap``... do. Raises BagError when neither exists."""
+    out: list[Path] = []
+    for p in [paths] if isinstance(paths, (str, Path)) else paths:
+        p = Path(p)
+        parts = [] if p.exists() else split_paths(p)
+        if not p.exists() and not parts:
+            raise BagError(f"{p}: no such file")
+        out.extend(parts or [p])
+    return out
+
+
+def _check_metadata(name: str, data: Mapping[str, str]) -> dict[str, str]:
+    if not isinstance(name, str) or not all(isinstance(k, str) and isinstance(v, str) for k, v in data.items()):
+        raise BagError(f"metadata {name!r}: names, keys and values must all be strings")
+    return dict(data)
+
+
+class BagWriter:
+    """Records messages into one MCAP file, or into numbered parts when a split limit is given.
+
+    Without ``max_size``/``max_duration_s`` the recording is exactly ``path``. With either, parts are
+    named ``<stem>_000.mcap``, ``<stem>_001.mcap``, ...; a new part starts before a message that
+    would take the current part past ``max_size`` bytes (estimated from the compressed bytes
+    written, the uncompressed bytes of the chunk in progress and the size of the summary, so parts
+    stay just under the limit; a single larger message gets a part of its own) or past
+    ``max_duration_s`` of log time. Every part is a complete MCAP file with its own schemas,
+    channels and the metadata given so far.
+
+    ``compression`` defaults to ``"lz4"``: it compresses and decompresses several times faster than
+    zstd, so the recorder keeps up with uncompressed camera streams on two cores, at a somewhat
+    larger file; ``"zstd"`` is smaller and slower, ``"none"`` the fastest. (The bus benchmark can
+    refine this choice.) Files are always chunked (``chunk_size`` bytes before compression) with
+    chunk CRCs and message indexes, so they seek fast and a killed recording stays readable up to
+    its last complete chunk.
+
+    An existing file is never overwritten unless ``force``; with ``force`` and splitting, stale
+    parts ``<stem>_NNN.mcap`` of an earlier recording are deleted first.
+    """
+
+    def __init__(self, path: str | Path, *, compression: str = "lz4", chunk_size: int = 4 * 1024 * 1024,
+                 max_size: int | None = None, max_duration_s: float | None = None, force: bool = False,
+                 metadata: Mapping[str, Mapping[str, str]] | None = None):
+        if compression not in _COMPRESSIONS:
+            raise BagError(f"unknown compression {compression!r}, expected one of {sorted(_COMPRESSIONS)}")
+        if max_size is not None and max_size <= 0:
+            raise BagError(f"max_size must be > 0 bytes, got {max_size}")
+        if max_duration_s is not None and not max_duration_s > 0:
+            raise BagError(f"max_duration_s must be > 0, got {max_duration_s}")
+        self.path = Path(path)
+        self._compression = _COMPRESSIONS[compression]
+        self._chunk_size = int(chunk_size)
+        self._max_size = max_size
+        self._max_duration_ns = None if max_duration_s is None else int(max_duration_s * 1e9)
+        self._split = max_size is not None or max_duration_s is not None
+        self._force = force
+        self._metadata = {name: _check_metadata(name, data) for name, data in (metadata or {}).items()}
+        self._topic_types: dict[str, tuple[str, int]] = {}
+        self._schema_data: dict[str, bytes] = {}
+        self._paths: list[Path] = []
+        self._writer: Writer | None = None
+        self._file: Any = None
+        self._closed = False
+        self.message_count = 0
+        self._prepare()
+        self._open_part()
+
+    @property
+    def paths(self) -> list[Path]:
+        """The files written so far (the one in progress last)."""
+        return list(self._paths)
+
+    def _prepare(self) -> None:
+        existing = split_paths(self.path) if self._split else [self.path] if self.path.exists() else []
+        if existing and not self._force:
+            raise BagError(f"{existing[0]} already exists; pass --force to overwrite it")
+        if self._split:
+            for old in existing:
+                old.unlink()
+
+    def _open_part(self) -> None:
+        if self._split:
+            name = self.path.with_name(f"{self.path.stem}_{len(self._paths):03d}{self.path.suffix or '.mcap'}")
+        else:
+            name = self.path
+        try:
+            self._file = open(name, "wb" if self._force else "xb")
+        except FileExistsError:
+            raise BagError(f"{name} already exists; pass --force to overwrite it") from None
+        except OSError as exc:
+            raise BagError(f"cannot create {name}: {exc.strerror or exc}") from None
+        self._paths.append(name)
+        self._writer = Writer(self._file, chunk_size=self._chunk_size, compression=self._compression,
+                              enable_crcs=True)
+        self._writer.start(profile=PROFILE, library=_library())
+        for meta_name, data in self._metadata.items():
+            self._writer.add_metadata(meta_name, data)
+        self._channels: dict[str, int] = {}
+        self._schemas: dict[str, int] = {}
+        self._part_messages = 0
+        self._part_first_ns = 0
+        self._pending = 0       # uncompressed bytes added since the file position last moved
+        self._last_pos = self._file.tell()
+        self._chunks_written = 0
+        self._registered = 0    # bytes of schema and channel records, repeated in the summary
+
+    def _finish_part(self, extra: Mapping[str, Mapping[str, str]] | None = None) -> None:
+        try:
+            for meta_name, data in (extra or {}).items():
+                self._writer.add_metadata(meta_name, data)
+            self._writer.finish()
+            self._file.close()
+        except OSError as exc:
+            raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
+
+    def _channel(self, topic: str, type_name: str, version: int) -> int:
+        known = self._topic_types.get(topic)
+        if known is not None and known != (type_name, version):
+            raise BagError(f"topic {topic!r}: got {type_name} v{version}, "
+                           f"but the recording has {known[0]} v{known[1]} on it")
+        cid = self._channels.get(topic)
+        if cid is not None:
+            return cid
+        if type_name not in self._schema_data:
+            try:
+                cls = lookup(type_name)
+            except SchemaError:
+                raise BagError(f"topic {topic!r}: cannot record unknown message type {type_name!r}") from None
+            if cls.VERSION != version:
+                raise BagError(f"topic {topic!r}: cannot record {type_name} schema version {version}, "
+                               f"this build has version {cls.VERSION}")
+            self._schema_data[type_name] = json.dumps(json_schema(cls), separators=(",", ":")).encode()
+        sid = self._schemas.get(type_name)
+        if sid is None:
+            sid = self._schemas[type_name] = self._writer.register_schema(
+                name=type_name, encoding=SCHEMA_ENCODING, data=self._schema_data[type_name])
+            self._registered += 30 + len(type_name) + len(self._schema_data[type_name])
+        cid = self._channels[topic] = self._writer.register_channel(
+            topic=topic, message_encoding=MESSAGE_ENCODING, schema_id=sid,
+            metadata={"type": type_name, "version": str(version)})
+        self._topic_types[topic] = (type_name, version)
+        self._registered += 60 + len(topic) + len(type_name)
+        return cid
+
+    def _should_roll(self, log_time_ns: int, size: int) -> bool:
+        if self._part_messages == 0:
+            return False
+        if self._max_duration_ns is not None and log_time_ns - self._part_first_ns >= self._max_duration_ns:
+            return True
+        if self._max_size is None:
+            return False
+        summary = 300 + self._registered + (self._chunks_written + 1) * (90 + 10 * len(self._channels))
+        return self._last_pos + self._pending + size + summary > self._max_size
+
+    def write(self, topic: str, type_name: str, version: int, frames_after_topic: Sequence[Any], *,
+              log_time_ns: int, publish_time_ns: int, sequence: int = 0) -> None:
+        """Record one message: ``frames_after_topic`` is ``[meta, buf0, ...]`` exactly as on the wire.
+
+        ``log_time_ns`` is the receive time, ``publish_time_ns`` the envelope's publish time and
+        ``sequence`` the publisher's ``header.seq`` (stored modulo 2**32, MCAP's field is uint32;
+        the exact value stays in the payload). Raises BagError for a type unknown to this build,
+        a schema version other than this build's, or a topic whose type changed.
+        """
+        if self._closed:
+            raise BagError(f"{self.path}: recording is closed")
+        payload = pack_payload(frames_after_topic)
+        size = len(payload) + _MESSAGE_RECORD_OVERHEAD
+        if self._split and self._should_roll(log_time_ns, size):
+            self._finish_part()
+            self._open_part()
+        cid = self._channel(topic, type_name, version)
+        try:
+            self._writer.add_message(cid, log_time=int(log_time_ns), data=payload,
+                                     publish_time=int(publish_time_ns), sequence=int(sequence) & 0xFFFFFFFF)
+        except OSError as exc:
+            raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
+        if self._part_messages == 0:
+            self._part_first_ns = log_time_ns
+        self._part_messages += 1
+        self.message_count += 1
+        if self._max_size is not None:
+            pos = self._file.tell()
+            if pos != self._last_pos:
+                self._pending, self._chunks_written = 0, self._chunks_written + 1
+            else:
+                self._pending += size
+            self._last_pos = pos
+
+    def write_frames(self, frames: Sequence[Any], *, log_time_ns: int) -> None:
+        """Record full wire frames ``[topic, meta, buf0, ...]``; type, version, publish time and
+        sequence are peeked from the metadata (the array frames are not decoded)."""
+        if len(frames) < 2:
+            raise BagError(f"cannot record {len(frames)} frame(s), need topic and metadata")
+        topic = bytes(getattr(frames[0], "bytes", frames[0])).decode("utf-8", errors="replace")
+        type_name, version, _, publish_ns, _, seq = peek(frames[1])
+        self.write(topic, type_name, version, frames[1:], log_time_ns=log_time_ns,
+                   publish_time_ns=publish_ns, sequence=seq)
+
+    def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
+        """Store a metadata record now and in every later part (strings only)."""
+        if self._closed:
+            raise BagError(f"{self.path}: recording is closed")
+        self._metadata[name] = _check_metadata(name, data)
+        self._writer.add_metadata(name, self._metadata[name])
+        self._last_pos = self._file.tell()  # the chunk in progress is still pending
+
+    def flush(self) -> None:
+        """Finish the chunk in progress and push it to the OS: a crash after this loses nothing before it."""
+        if not self._closed:
+            self._writer.flush()
+            pos = self._file.tell()
+            self._chunks_written += pos != self._last_pos
+            self._last_pos, self._pending = pos, 0
+
+    def close(self, extra_metadata: Mapping[str, Mapping[str, str]] | None = None) -> None:
+        """Write the summary and close; ``extra_metadata`` goes into the last part only. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        extra = {name: _check_metadata(name, data) for name, data in (extra_metadata or {}).items()}
+        self._finish_part(extra)
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()

@@ -1,0 +1,197 @@
+"""The receiver thread of a node process: drains SUB sockets into input queues, talks to the launcher.
+
+It applies each input's queue policy as messages arrive, so a slow callback never stalls
+upstream unless the input asked for ``block``. It also owns the node's control socket (a DEALER
+to the launcher's ROUTER): readiness, start, status snapshots for lockstep replay, and the
+quiescence requests of a lockstep player. The node thread talks to it through ``send_control``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import msgpack
+import zmq
+
+from probeless import wire
+from probeless.errors import SchemaError
+from probeless.runtime.queues import InputQueue
+
+log = logging.getLogger("probeless.receiver")
+BLOCK_RECV_HWM = 4
+DROP_RECV_HWM = 1000
+EOS_MARK = object()
+
+
+@dataclass(frozen=True)
+class InputWire:
+    """Where one input reads from."""
+
+    name: str
+    endpoint: str          # upstream publisher endpoint
+    topic: str             # "<node_id>/<output>"
+    type_name: str | None  # expected message type, None = any
+    raw: bool = False      # deliver RawMessage (frames as received) instead of a decoded Message
+
+
+@dataclass(frozen=True)
+class RawMessage:
+    """A message exactly as it crossed the wire, for recorders: no decoding beyond the envelope."""
+
+    topic: str
+    frames: list           # [meta, buffer0, ...] after the topic frame (zmq.Frame or bytes)
+    type_name: str
+    version: int
+    publisher: str
+    publish_ns: int        # publisher's wall clock at publish [ns]
+    stamp_ns: int          # header.stamp_ns [ns]
+    seq: int               # header.seq
+    recv_ns: int           # this process's wall clock at receive [ns]
+
+
+def peek_raw(topic: str, frames: list, recv_ns: int) -> RawMessage:
+    """Envelope facts of raw frames ``[topic, meta, ...]``; SchemaError when the metadata is malformed."""
+    try:
+        meta = msgpack.unpackb(wire._view(frames[1]), raw=False)
+        header = meta["fields"]["header"]
+        return RawMessage(topic, list(frames[1:]), str(meta["type"]), int(meta["version"]),
+                          str(meta["publisher"]), int(meta["publish_ns"]), int(header["stamp_ns"]),
+                          int(header["seq"]), recv_ns)
+    except (ValueError, TypeError, KeyError, IndexError) as exc:
+        raise SchemaError(f"topic {topic!r}: malformed envelope: {exc}") from None
+
+
+class Receiver(threading.Thread):
+    """Drains SUB sockets into input queues; wakes the node thread through ``cond``."""
+
+    def __init__(self, zctx: zmq.Context, wires: list[InputWire], queues: dict[str, InputQueue],
+                 cond: threading.Condition, wake_endpoint: str, max_bytes: int = wire.MAX_MESSAGE_BYTES,
+                 control: tuple[str, str] | None = None, status: Callable[[], dict] | None = None):
+        super().__init__(name="probeless-receiver", daemon=True)
+        self.cond, self.queues, self.max_bytes = cond, queues, max_bytes
+        self.stopping = False
+        self.eos_seen = False  # set once any input has reached end of stream
+        self.arrivals = 0
+        self.started = threading.Event()   # launcher said start
+        self.quiet = threading.Event()     # launcher confirmed quiescence (lockstep)
+        self.status = status or (lambda: {})
+        self.outbox: deque[list[bytes]] = deque()
+        self.wake = zctx.socket(zmq.PAIR)
+        self.wake.bind(wake_endpoint)
+        self.control = None
+        if control is not None:
+            self.control = zctx.socket(zmq.DEALER)
+            self.control.setsockopt(zmq.IDENTITY, control[1].encode())
+            self.control.setsockopt(zmq.LINGER, 0)
+            self.control.connect(control[0])
+        self.socks: dict[zmq.Socket, InputWire] = {}
+        for w in wires:
+            s = zctx.socket(zmq.SUB)
+            s.setsockopt(zmq.RCVHWM, BLOCK_RECV_HWM if queues[w.name].policy == "block" else DROP_RECV_HWM)
+            s.setsockopt(zmq.LINGER, 0)
+            s.setsockopt(zmq.MAXMSGSIZE, max_bytes)  # refuse oversized frames before allocating them
+            s.connect(w.endpoint)
+            s.setsockopt(zmq.SUBSCRIBE, w.topic.encode())
+            self.socks[s] = w
+        self.topic_bytes = {s: w.topic.encode() for s, w in self.socks.items()}
+        self.pending: dict[zmq.Socket, tuple] = {}
+
+    def send_control(self, *parts: bytes, wake_tx: zmq.Socket) -> None:
+        """Queue a message to the launcher (called from the node thread)."""
+        self.outbox.append(list(parts))
+        wake_tx.send(b"")
+
+    def run(self) -> None:
+        poller = zmq.Poller()
+        poller.register(self.wake, zmq.POLLIN)
+        if self.control is not None:
+            poller.register(self.control, zmq.POLLIN)
+        for s in self.socks:
+            poller.register(s, zmq.POLLIN)
+        while not self.stopping:
+            for sock, _ in poller.poll(500):
+                if sock is self.wake:
+                    self.wake.recv()
+                    self._flush_outbox()
+                    self._retry_pending(poller)
+                elif sock is self.control:
+                    self._on_control(self.control.recv_multipart())
+                elif sock not in self.pending:
+                    self._receive(sock, poller)
+        for s in list(self.socks) + [self.wake] + ([self.control] if self.control is not None else []):
+            s.close(0)
+
+    def _flush_outbox(self) -> None:
+        while self.outbox:
+            parts = self.outbox.popleft()
+            if self.control is not None:
+                self.control.send_multipart(parts)
+
+    def _on_control(self, parts: list[bytes]) -> None:
+        kind = parts[0]
+        if kind == b"start":
+            self.started.set()
+        elif kind == b"status":
+            self.control.send_multipart([b"status", parts[1], msgpack.packb(self.status())])
+        elif kind == b"quiet":
+            self.quiet.set()
+
+    def _receive(self, sock: zmq.Socket, poller: zmq.Poller) -> None:
+        w = self.socks[sock]
+        topic = self.topic_bytes[sock]
+        while sock not in self.pending and sock.get(zmq.EVENTS) & zmq.POLLIN:
+            frames = sock.recv_multipart(copy=False)
+            if frames[0].bytes != topic:
+                continue  # prefix match of another topic
+            if wire.is_eos(frames):
+                self._push(w.name, (EOS_MARK, None))
+                poller.unregister(sock)
+                del self.socks[sock]
+                sock.close(0)  # tells the publisher this subscriber has everything
+                return
+            try:
+                item = self._item(w, frames)
+            except SchemaError as exc:
+                with self.cond:
+                    self.queues[w.name].invalid += 1
+                log.error("input %r (topic %s): discarded invalid message: %s", w.name, w.topic, exc)
+                continue
+            if not self._push(w.name, item):
+                self.pending[sock] = item
+                poller.unregister(sock)
+
+    def _item(self, w: InputWire, frames: list) -> tuple[Any, int]:
+        if w.raw:
+            raw = peek_raw(w.topic, frames, time.time_ns())
+            return raw, raw.seq
+        _, _, msg = wire.decode(frames, expected=w.type_name, max_bytes=self.max_bytes)
+        return msg, msg.header.seq
+
+    def _push(self, name: str, item: tuple) -> bool:
+        with self.cond:
+            q = self.queues[name]
+            if item[0] is EOS_MARK:
+                q.eos = True
+                self.eos_seen = True
+            else:
+                self.arrivals += 1
+                if not q.push(self.arrivals, item[0], item[1]):
+                    return False
+            self.cond.notify()
+        return True
+
+    def _retry_pending(self, poller: zmq.Poller) -> None:
+        for sock, item in list(self.pending.items()):
+            if self._push(self.socks[sock].name, item):
+                del self.pending[sock]
+                poller.register(sock, zmq.POLLIN)
+                self._receive(sock, poller)
+
+    def stop(self, wake_tx: zmq.Socket) -> None:
+        self.stopping = True
+        wake_tx.send(b"")
