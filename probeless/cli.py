@@ -80,6 +80,10 @@ def cmd_bench(ns: argparse.Namespace) -> int:
         from probeless.tools.bench_bus import main as bench_bus
 
         return bench_bus(json_out=ns.json, quick=ns.quick)
+    if ns.what == "bag":
+        from probeless.tools.bench_bag import main as bench_bag
+
+        return bench_bag(json_out=ns.json, quick=ns.quick)
     raise ProbelessError(f"unknown benchmark {ns.what!r}")
 
 
@@ -140,6 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("args", nargs="*", metavar="name:=value")
     c.add_argument("--bag", required=True, metavar="IN.mcap", help="recorded inputs")
     c.add_argument("--golden", required=True, metavar="OUT.mcap", help="expected outputs (written if missing)")
+    c.add_argument("--replace", metavar="ID1,ID2", help="nodes the recording stands in for (default: every node "
+                                                        "whose outputs are all in the recording)")
     c.add_argument("--tolerance", type=float, default=1e-6, help="absolute tolerance for float values")
     c.add_argument("--rtol", type=float, default=0.0, help="relative tolerance for float values")
     c.add_argument("--update-golden", action="store_true", help="overwrite the golden recording")
@@ -157,7 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_graph)
 
     c = sub.add_parser("bench", help="run a benchmark and print its figures")
-    c.add_argument("what", choices=("bus",))
+    c.add_argument("what", choices=("bus", "bag"))
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.add_argument("--quick", action="store_true", help="fewer messages (for smoke tests)")
     c.set_defaults(func=cmd_bench)

@@ -26,10 +26,12 @@ Python API (``out``/``err`` are text streams; every function raises ProbelessErr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import difflib
 import json
 import math
 import os
+import signal
 import sys
 import tempfile
 import threading
@@ -46,7 +48,7 @@ import zmq
 from probeless.errors import ProbelessError
 from probeless.messages.base import Message, Struct, schema_of
 from probeless.runtime.queues import InputQueue
-from probeless.runtime.transport import InputWire, Receiver
+from probeless.runtime.receiver import InputWire, Receiver
 
 NO_GRAPH_HINT = "start one with `probeless launch GRAPH`, or pass --graph-dir RUN_DIR"
 _reader_ids = _counter()
@@ -169,6 +171,7 @@ class Topic:
     endpoint: str               # the publisher's endpoint
     subscribers: list[Subscriber] = field(default_factory=list)
     declared: bool = True       # False for a topic guessed from "<node>/<output>" (dynamic family output)
+    expected: int = 0           # subscribers the publisher's readiness barrier waits for
 
 
 def _class_output_type(node_type: str, output: str) -> str | None:
@@ -192,6 +195,10 @@ def graph_topics(graph: RunningGraph) -> dict[str, Topic]:
         for inp in node.get("inputs", []):
             if "topic" in inp:
                 wired.setdefault(inp["topic"], []).append(dict(inp, node_id=nid))
+        clock = node.get("clock")
+        if clock:  # replay: every node follows the player's clock (a block input of 64, see process.py)
+            wired.setdefault(clock["topic"], []).append({"node_id": nid, "name": "(clock)", "policy": "block",
+                                                         "queue_size": 64, "type_name": "core/Clock"})
     topics: dict[str, Topic] = {}
     for nid, node in nodes.items():
         outputs = dict(node.get("outputs", {}))
@@ -205,7 +212,8 @@ def graph_topics(graph: RunningGraph) -> dict[str, Topic]:
                 type_name = next((s["type_name"] for s in subs if s.get("type_name")), None)
                 type_name = type_name or _class_output_type(node["node"], out)
             topics[name] = Topic(name, type_name, nid, node["node"], node["endpoint"],
-                                 [Subscriber(s["node_id"], s["name"], s["policy"], s["queue_size"]) for s in subs])
+                                 [Subscriber(s["node_id"], s["name"], s["policy"], s["queue_size"]) for s in subs],
+                                 expected=max(len(subs), int(spec.get("subscribers") or 0)))
     return topics
 
 
@@ -250,7 +258,7 @@ def list_topics(graph: RunningGraph, *, verbose: bool = False, out: IO[str] | No
     """Print one line per topic: topic, type, publisher, subscriber count (``verbose``: who and how)."""
     out = out or sys.stdout
     topics = list(graph_topics(graph).values())
-    rows = [(t.name, t.type_name or "?", t.publisher, str(len(t.subscribers))) for t in topics]
+    rows = [(t.name, t.type_name or "?", t.publisher, str(max(len(t.subscribers), t.expected))) for t in topics]
     heads = ("TOPIC", "TYPE", "PUBLISHER", "SUBSCRIBERS")
     widths = [max(len(r[i]) for r in rows + [heads]) for i in range(4)]
     print("  ".join(h.ljust(w) for h, w in zip(heads, widths)).rstrip(), file=out)
@@ -281,15 +289,20 @@ class TopicReader:
     def __init__(self, topics: Iterable[tuple[str, str]], *, policy: str = "drop_oldest", queue_size: int = 100):
         if policy not in ("drop_oldest", "latest"):
             raise ValueError("a tool must never use the block policy: it would hold up the graph")
-        wires = [InputWire(topic, endpoint, topic, None) for topic, endpoint in dict(topics).items()]
+        self.wires = [InputWire(topic, endpoint, topic, None) for topic, endpoint in dict(topics).items()]
         self.cond = threading.Condition()
-        self.queues = {w.name: _TimedQueue(w.name, policy, queue_size) for w in wires}
+        self.queues = {w.name: _TimedQueue(w.name, policy, queue_size) for w in self.wires}
+        self.zctx: zmq.Context | None = None
+        self.suspended = False
+        self._open()
+
+    def _open(self) -> None:
         self.zctx = zmq.Context()
         self.receiver: Receiver | None = None
         self.wake_tx = None
         try:
             wake = f"inproc://probeless-topic-tool-{os.getpid()}-{next(_reader_ids)}"
-            self.receiver = Receiver(self.zctx, wires, self.queues, self.cond, wake)
+            self.receiver = Receiver(self.zctx, self.wires, self.queues, self.cond, wake)
             self.wake_tx = self.zctx.socket(zmq.PAIR)
             self.wake_tx.setsockopt(zmq.LINGER, 0)
             self.wake_tx.connect(wake)
@@ -297,6 +310,21 @@ class TopicReader:
         except zmq.ZMQError as exc:
             self.close()
             raise ProbelessError(f"cannot subscribe: {exc}") from None
+
+    def suspend(self) -> None:
+        """Unsubscribe (e.g. before the process stops on Ctrl-Z); :meth:`resume` subscribes again."""
+        if not self.suspended and self.zctx is not None:
+            self.close()
+            self.suspended = True
+
+    def resume(self) -> None:
+        """Subscribe again after :meth:`suspend`; what was published meanwhile is not counted as lost."""
+        if self.suspended:
+            self.suspended = False
+            with self.cond:
+                for q in self.queues.values():
+                    q.last_seq = None
+            self._open()
 
     def __enter__(self) -> "TopicReader":
         return self
@@ -339,6 +367,7 @@ class TopicReader:
 
     def close(self) -> None:
         """Unsubscribe now (linger 0). Idempotent."""
+        self.suspended = False
         if self.zctx is None:
             return
         stopped = True
@@ -355,6 +384,39 @@ class TopicReader:
         if stopped:
             self.zctx.term()
         self.zctx = None
+
+
+# -- not disturbing the start -------------------------------------------------------------------
+SURELY_STARTED_S = 65.0  # past the launcher's default ready timeout (60 s): the barrier is over
+
+
+def wait_for_start(graph: RunningGraph, *, timeout: float | None = None, err: IO[str] | None = None) -> bool:
+    """Wait until the graph has passed its readiness barrier; False when it stopped or ``timeout`` passed.
+
+    A node's barrier counts subscriptions per topic, so a tool subscribing to a wired topic while
+    the graph starts would stand in for a real subscriber that has not connected yet, and that
+    subscriber would miss the first messages. Nodes publish diagnostics only once started, so the
+    wait listens to diagnostics topics no node subscribes to (subscribing to those is harmless).
+    """
+    if (time.time_ns() - graph.started_ns) / 1e9 > SURELY_STARTED_S:
+        return True
+    safe = [(t.name, t.endpoint) for t in graph_topics(graph).values()
+            if t.name.endswith("/diagnostics") and not t.expected]
+    if not safe:
+        return True  # every node is monitored: nothing harmless to listen to; accept the small race
+    t0 = time.monotonic()
+    noted = False
+    with TopicReader(safe, policy="latest", queue_size=1) as reader:
+        while True:
+            if reader.take(0.1):
+                return True
+            waited = time.monotonic() - t0
+            if reader.ended or not graph.alive or (timeout is not None and waited > timeout):
+                return False
+            if not noted and waited > 1.5 and err is not None:
+                print("waiting for the graph to start (subscribing earlier could make its nodes miss "
+                      "their first messages)", file=err, flush=True)
+                noted = True
 
 
 # -- echo ----------------------------------------------------------------------------------------------
@@ -434,6 +496,58 @@ def _format_field(name: str, value: Any, arrays: bool, indent: str) -> list[str]
     return [f"{indent}{name}: {_scalar(value)}"]
 
 
+_suspend_requested = False
+
+
+def _on_tstp(signum, frame) -> None:
+    global _suspend_requested
+    _suspend_requested = True
+
+
+def _suspend_point(reader: TopicReader, err: IO[str]) -> bool:
+    """After Ctrl-Z (CLI only): unsubscribe, stop the process, subscribe again on ``fg``/SIGCONT.
+
+    A stopped process cannot drain its sockets, and publishers wait for a full subscriber (NODROP),
+    so staying subscribed while stopped would hold up the graph. True when a suspension happened.
+    """
+    global _suspend_requested
+    if not _suspend_requested:
+        return False
+    _suspend_requested = False
+    reader.suspend()
+    print("\n[suspended: unsubscribed so the graph is not held up; resubscribes on fg]", file=err, flush=True)
+    os.kill(os.getpid(), signal.SIGSTOP)  # SIGSTOP: unlike SIGTSTP it also stops an orphaned process group
+    reader.resume()
+    print("[resumed: subscribed again; messages published meanwhile were not received]", file=err, flush=True)
+    return True
+
+
+@contextlib.contextmanager
+def cli_signals(suspend: bool = False):
+    """For the CLI: SIGINT and SIGTERM end a tool cleanly (sockets closed); with ``suspend``, Ctrl-Z
+    unsubscribes before stopping (see :func:`_suspend_point`). A no-op outside the main thread."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    global _suspend_requested
+    _suspend_requested = False
+    wanted = {signal.SIGINT: interrupt, signal.SIGTERM: interrupt}
+    if suspend:
+        wanted[signal.SIGTSTP] = _on_tstp
+    old = {}
+    try:
+        for sig, handler in wanted.items():
+            old[sig] = signal.signal(sig, handler)
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
 def _launcher_gone(graph: RunningGraph, state: dict) -> bool:
     """True once the launcher has exited (checked at most once a second)."""
     now = time.monotonic()
@@ -455,9 +569,16 @@ def echo(graph: RunningGraph, topic_name: str, *, count: int | None = None, arra
     printed = 0
     check: dict = {}
     reason = None
+    try:
+        if topic.expected and not wait_for_start(graph, err=err):
+            print(f"{topic.name}: the graph stopped before it started", file=err)
+            return 0
+    except KeyboardInterrupt:
+        return 0
     with TopicReader([(topic.name, topic.endpoint)], policy=policy, queue_size=queue_size) as reader:
         try:
             while reason is None and (count is None or printed < count):
+                _suspend_point(reader, err)
                 for _, _, msg in reader.take(0.2):
                     seq = getattr(getattr(msg, "header", None), "seq", None)
                     lines = [f"--- {topic.name} {msg.TYPE_NAME}" + (f" seq {seq}" if seq is not None else ""),
@@ -546,6 +667,12 @@ def hz(graph: RunningGraph, topic_name: str, *, window: int = 100, duration: flo
     topic = find_topic(graph, topic_name)
     _import_publisher(topic)
     stats = RateStats(window)
+    try:
+        if topic.expected and not wait_for_start(graph, err=err, timeout=duration):
+            print(f"{topic.name}: the graph did not start", file=err)
+            return dict(stats.report(), seq_gaps=0, tool_dropped=0, invalid=0, reason="not started")
+    except KeyboardInterrupt:
+        return dict(stats.report(), seq_gaps=0, tool_dropped=0, invalid=0, reason="interrupted")
     t0 = time.monotonic()
     next_print = t0 + interval
     last_total = 0
@@ -558,6 +685,8 @@ def hz(graph: RunningGraph, topic_name: str, *, window: int = 100, duration: flo
 
         try:
             while reason is None:
+                if _suspend_point(reader, err):
+                    stats.items.clear()  # receive times span the pause: start the window afresh
                 now = time.monotonic()
                 end = t0 + duration if duration is not None else math.inf
                 for _, recv_ns, msg in reader.take(max(0.0, min(next_print, end) - now)):
@@ -595,6 +724,9 @@ def topic_info(graph: RunningGraph, topic_name: str, *, timeout: float = 2.5) ->
     diag = {f"{n}/diagnostics": nodes[n]["endpoint"] for n in dict.fromkeys(watch)}
     statuses: dict[str, Any] = {}
     deadline = time.monotonic() + timeout
+    topics = graph_topics(graph)
+    if any(topics[t].expected for t in diag if t in topics):
+        wait_for_start(graph, timeout=timeout)
     with TopicReader(diag.items(), policy="latest", queue_size=1) as reader:
         while len(statuses) < len(diag) and time.monotonic() < deadline:
             for name, _, msg in reader.take(min(0.1, max(0.0, deadline - time.monotonic()))):
@@ -667,7 +799,8 @@ def _quiet_broken_pipe() -> int:
 
 def cmd_topic_list(ns: argparse.Namespace) -> int:
     try:
-        list_topics(_graph(ns), verbose=ns.verbose)
+        with cli_signals():
+            list_topics(_graph(ns), verbose=ns.verbose)
     except BrokenPipeError:
         return _quiet_broken_pipe()
     return 0
@@ -676,7 +809,8 @@ def cmd_topic_list(ns: argparse.Namespace) -> int:
 def cmd_topic_echo(ns: argparse.Namespace) -> int:
     count = 1 if ns.once else ns.count
     try:
-        echo(_graph(ns), ns.topic, count=count, arrays=not ns.no_arrays, queue_size=ns.queue_size)
+        with cli_signals(suspend=True):
+            echo(_graph(ns), ns.topic, count=count, arrays=not ns.no_arrays, queue_size=ns.queue_size)
     except BrokenPipeError:
         return _quiet_broken_pipe()
     return 0
@@ -684,7 +818,8 @@ def cmd_topic_echo(ns: argparse.Namespace) -> int:
 
 def cmd_topic_hz(ns: argparse.Namespace) -> int:
     try:
-        hz(_graph(ns), ns.topic, window=ns.window, duration=ns.duration, queue_size=ns.queue_size)
+        with cli_signals(suspend=True):
+            hz(_graph(ns), ns.topic, window=ns.window, duration=ns.duration, queue_size=ns.queue_size)
     except BrokenPipeError:
         return _quiet_broken_pipe()
     return 0
@@ -692,7 +827,8 @@ def cmd_topic_hz(ns: argparse.Namespace) -> int:
 
 def cmd_topic_info(ns: argparse.Namespace) -> int:
     try:
-        print_info(topic_info(_graph(ns), ns.topic, timeout=ns.timeout))
+        with cli_signals():
+            print_info(topic_info(_graph(ns), ns.topic, timeout=ns.timeout))
     except BrokenPipeError:
         return _quiet_broken_pipe()
     return 0

@@ -78,3 +78,63 @@ class Recorder(Node):
     def close(self):
         Path(self.params.out).write_text(json.dumps(
             {"seqs": self.seqs, "status": self.status, "closed": self.closed_inputs}))
+
+
+class Jitter(Node):
+    """Republishes each image after a truly random sleep: a nondeterministically scheduled worker."""
+
+    INPUTS = {"image": Image}
+    OUTPUTS = {"image": Image}
+
+    @dataclass(frozen=True)
+    class Params:
+        max_sleep_ms: float = param(5.0, min=0)
+
+    def on_input(self, name, msg):
+        time.sleep(int.from_bytes(os.urandom(2), "little") / 65535 * self.params.max_sleep_ms / 1e3)
+        self.ctx.publish("image", msg)
+
+
+class ClockWatcher(Node):
+    """Records ctx.now_ns() per message and counts on_time_reset calls; writes JSON on close."""
+
+    INPUTS = {"*": None}
+
+    @dataclass(frozen=True)
+    class Params:
+        out: str = param()
+
+    def setup(self):
+        self.now: list[int] = []
+        self.stamps: list[int] = []
+        self.recv_wall: list[int] = []
+        self.resets = 0
+
+    def on_input(self, name, msg):
+        self.now.append(self.ctx.now_ns())
+        self.stamps.append(msg.header.stamp_ns)
+        self.recv_wall.append(time.time_ns())
+
+    def on_time_reset(self):
+        self.resets += 1
+
+    def close(self):
+        Path(self.params.out).write_text(json.dumps({"now": self.now, "stamps": self.stamps, "resets": self.resets,
+                                                     "simulated": self.ctx.simulated_time,
+                                                     "recv_wall": self.recv_wall}))
+
+
+class TickRelay(Node):
+    """Publishes Tick messages on an output named ``image`` (to provoke type mismatches on replay)."""
+
+    INPUTS = {"tick": Tick}
+    OUTPUTS = {"image": Tick}
+
+    def on_input(self, name, msg):
+        self.ctx.publish("image", msg)
+
+
+class TickSink(Node):
+    """Accepts only core/Tick on ``image``."""
+
+    INPUTS = {"image": Tick}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 
@@ -97,6 +98,10 @@ def test_log_time_order_across_topics_and_filters(tmp_path):
         assert len(only_b) == 20 and {m.topic for m in only_b} == {"b"}
         window = [m.log_time_ns - T0 for m in r.messages(start_ns=T0 + 100, end_ns=T0 + 200)]
         assert window == list(range(100, 200, 10))
+        written = [(m.topic, m.log_time_ns) for m in r.messages(in_file_order=True)]
+        assert written == [(t, ns) for t, _, ns in items]
+        assert [m.log_time_ns for m in r.messages("a", start_ns=T0 + 200, in_file_order=True)] == \
+            [T0 + 20 * i for i in range(10, 20)]
 
 
 def test_metadata_round_trip(tmp_path):
@@ -211,6 +216,13 @@ def test_truncated_at_half_and_mid_chunk(long_recording, tmp_path):
     assert mid.truncated
     assert "after 2 complete chunk(s)" in mid.truncation_note and "partial chunk" in mid.truncation_note
     assert assert_prefix(mid, sent) == sum(1 for t in sent if t[1] <= chunks[1].message_end_time)
+
+
+def test_cut_in_summary_keeps_all_data(long_recording, tmp_path):
+    path, sent = long_recording
+    r = BagReader(cut_copy(path, tmp_path / "nosummary.mcap", path.stat().st_size - 20))  # footer damaged
+    assert r.truncated and "only the summary" in r.truncation_note
+    assert assert_prefix(r, sent) == len(sent)
 
 
 def test_truncated_right_after_header(long_recording, tmp_path):
@@ -328,7 +340,7 @@ def test_payload_pack_unpack_and_peek():
 
 
 def test_json_schema_validates_wire_documents(tmp_path):
-    jsonschema = pytest.importorskip("jsonschema")
+    import jsonschema
     for name, msg in examples().items():
         schema = json_schema(type(msg))
         jsonschema.Draft202012Validator.check_schema(schema)
@@ -347,6 +359,5 @@ def test_json_schema_validates_wire_documents(tmp_path):
     record(path, [("t", examples()["core/Tick"], T0)])
     with open(path, "rb") as f:
         (schema_rec,) = make_reader(f).get_summary().schemas.values()
-    import json
     assert (schema_rec.name, schema_rec.encoding) == ("core/Tick", "jsonschema")
     assert json.loads(schema_rec.data) == json_schema(Tick)

@@ -17,7 +17,6 @@ from probeless.launch.draw import draw
 from probeless.launch.launcher import load_checked
 
 DEMO = Path(__file__).parents[1] / "launch/demo_runtime.yaml"
-needs_dot = pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz 'dot' not installed")
 
 NAMESPACED = """\
 include:
@@ -69,7 +68,6 @@ def test_mermaid_default(demo):
     assert '(["timer 30 Hz"])' in text and text.count("-->") == 3
 
 
-@needs_dot
 def test_dot_parses_with_right_counts(demo):
     text = draw(demo, "dot", None)
     for node_id in demo.nodes:
@@ -85,7 +83,6 @@ def test_dot_parses_with_right_counts(demo):
     assert sum(line.startswith("edge ") for line in plain.splitlines()) == 3
 
 
-@needs_dot
 def test_png_and_svg(demo, tmp_path):
     png = tmp_path / "sub/g.png"
     text = draw(demo, None, str(png))
@@ -99,7 +96,6 @@ def test_png_and_svg(demo, tmp_path):
     assert "<svg" in body and "sensor/Image" in body and "timer 30 Hz" in body
 
 
-@needs_dot
 def test_namespaced_ids_policies_and_timer_units(namespaced):
     text = draw(namespaced, "dot", None)
     parsed = dot_json(text)
@@ -135,7 +131,6 @@ def test_format_from_suffix_and_errors(demo, tmp_path, monkeypatch):
     assert not (tmp_path / "x.png").exists()
 
 
-@needs_dot
 def test_cli_graph_png(tmp_path, capsys):
     out = tmp_path / "g.png"
     assert main(["graph", str(DEMO), "--out", str(out)]) == 0

@@ -9,7 +9,8 @@ import numpy as np
 from probeless.bag.reader import BagReader
 from probeless.messages.base import Struct, schema_of
 
-MAX_DIFFS = 20
+MAX_DIFFS = 40
+MAX_PER_TOPIC = 3
 
 
 def compare_recordings(actual: str, golden: str, *, atol: float = 1e-6, rtol: float = 0.0) -> list[str]:
@@ -29,12 +30,16 @@ def compare_recordings(actual: str, golden: str, *, atol: float = 1e-6, rtol: fl
             continue
         if ta[topic].count != tg[topic].count:
             diffs.append(f"topic {topic}: {ta[topic].count} message(s), golden {tg[topic].count}")
+        differing = 0
         for i, (ma, mg) in enumerate(zip(a.messages(topic), g.messages(topic))):
-            for d in compare_values(a.decode(ma), g.decode(mg), "", atol, rtol):
-                diffs.append(f"topic {topic}: message {i}: {d}")
-            if len(diffs) >= MAX_DIFFS:
-                return diffs + ["(further differences not shown)"]
-    return diffs
+            found = compare_values(a.decode(ma), g.decode(mg), "", atol, rtol)
+            differing += bool(found)
+            if found and differing <= MAX_PER_TOPIC:
+                diffs += [f"topic {topic}: message {i}: {d}" for d in found]
+        if differing > MAX_PER_TOPIC:
+            diffs.append(f"topic {topic}: ... {differing - MAX_PER_TOPIC} more differing message(s) "
+                         f"({differing} of {min(ta[topic].count, tg[topic].count)} in all)")
+    return diffs[:MAX_DIFFS] + (["(further differences not shown)"] if len(diffs) > MAX_DIFFS else [])
 
 
 def compare_values(x: Any, y: Any, path: str, atol: float, rtol: float) -> list[str]:
@@ -69,7 +74,7 @@ def _compare_arrays(x: np.ndarray, y: np.ndarray, path: str, atol: float, rtol: 
     where = tuple(int(i) for i in np.argwhere(bad)[0])
     err = np.abs(x.astype(np.float64) - y.astype(np.float64))
     return [f"{path}: {int(bad.sum())} of {x.size} element(s) differ, max abs diff {float(err.max()):.6g} "
-            f"(first at {where}: {x[where]!r}, golden {y[where]!r})"]
+            f"(first at {where}: {x[where].item()!r}, golden {y[where].item()!r})"]
 
 
 def _join(path: str, name: str) -> str:

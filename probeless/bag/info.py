@@ -61,7 +61,7 @@ def _graph(meta: dict[str, str] | None, warnings: list[str]) -> dict[str, Any] |
     out.update(file=None, args={}, nodes={})
     try:
         plan = json.loads(meta.get("plan", "{}"))
-        out["file"], out["args"] = plan.get("file"), plan.get("args") or {}
+        out["file"], out["args"] = plan.get("file") or meta.get("graph_file") or None, plan.get("args") or {}
         out["nodes"] = {nid: {"node": n.get("node"), "params": n.get("params") or {}}
                         for nid, n in (plan.get("nodes") or {}).items()}
     except (ValueError, AttributeError, TypeError) as exc:

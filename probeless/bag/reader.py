@@ -115,6 +115,7 @@ class BagReader:
         self._metadata: dict[str, dict[str, str]] = {}
         self._stats: dict[int, list] | None = None  # channel id -> [count, first, last, bytes]
         self._time_range: tuple[int, int] | None = None
+        self._summary_damaged = False
         header = self._record_at(8)
         if header and header[0] == Opcode.HEADER:
             h = _parse(header[1], Opcode.HEADER)
@@ -140,6 +141,7 @@ class BagReader:
             self._f.seek(0)
             summary = SeekingReader(self._f).get_summary()
         except Exception:  # no footer, garbage footer, ... -> scan
+            self._summary_damaged = True
             return False
         if summary is None or (not summary.chunk_indexes and (summary.statistics is None
                                                               or summary.statistics.message_count)):
@@ -205,6 +207,8 @@ class BagReader:
             pos += _PREFIX + length
         if not clean_end and not self.truncated:
             self._truncate("the file has no summary (the recorder did not finish it)")
+        elif clean_end and self._summary_damaged:
+            self._truncate("the data is complete, only the summary at the end is missing or damaged")
         self._stats = stats
 
     def _truncate(self, why: str) -> None:
@@ -343,25 +347,36 @@ class BagReader:
                            f"({type(exc).__name__}: {exc})") from None
 
     def messages(self, topics: str | Iterable[str] | None = None, start_ns: int | None = None,
-                 end_ns: int | None = None) -> Iterator[BagMessage]:
+                 end_ns: int | None = None, *, in_file_order: bool = False) -> Iterator[BagMessage]:
         """Messages in log-time order (file order among equal times), optionally only the given
-        topics and log times in ``[start_ns, end_ns)``."""
+        topics and log times in ``[start_ns, end_ns)``; ``in_file_order`` yields them in the order
+        they were written instead (one chunk in memory at a time)."""
         wanted = None if topics is None else {topics} if isinstance(topics, str) else set(topics)
         ids = None if wanted is None else {cid for cid, ch in self._channels.items() if ch.topic in wanted}
-        heap = [(c.start_ns, 0, k, 0, None) for k, c in enumerate(self._chunks)
-                if (ids is None or c.channels is None or c.channels & ids)
-                and (start_ns is None or c.end_ns >= start_ns) and (end_ns is None or c.start_ns < end_ns)]
-        heapq.heapify(heap)
-        while heap:
-            t, kind, k, i, rec = heapq.heappop(heap)
-            if kind == 1:
-                yield self._message(rec)
-                continue
+        chunks = [(c.start_ns, 0, k, 0, None) for k, c in enumerate(self._chunks)
+                  if (ids is None or c.channels is None or c.channels & ids)
+                  and (start_ns is None or c.end_ns >= start_ns) and (end_ns is None or c.start_ns < end_ns)]
+
+        def selected(k: int) -> Iterator[tuple[int, Message]]:
             for i, r in enumerate(self._chunk_records(self._chunks[k])):
                 if (isinstance(r, Message) and (ids is None or r.channel_id in ids)
                         and (start_ns is None or r.log_time >= start_ns)
                         and (end_ns is None or r.log_time < end_ns)):
-                    heapq.heappush(heap, (r.log_time, 1, k, i, r))
+                    yield i, r
+
+        if in_file_order:
+            for _, _, k, _, _ in sorted(chunks, key=lambda c: self._chunks[c[2]].offset):
+                for _, r in selected(k):
+                    yield self._message(r)
+            return
+        heapq.heapify(chunks)
+        while chunks:
+            t, kind, k, i, rec = heapq.heappop(chunks)
+            if kind == 1:
+                yield self._message(rec)
+                continue
+            for i, r in selected(k):
+                heapq.heappush(chunks, (r.log_time, 1, k, i, r))
 
     def _message(self, r: Message) -> BagMessage:
         ch = self._channels.get(r.channel_id)

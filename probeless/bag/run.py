@@ -109,7 +109,10 @@ def cmd_play(ns: argparse.Namespace) -> int:
 def cmd_test(ns: argparse.Namespace, overrides: dict) -> int:
     """Lockstep replay of ``--bag`` through the graph, outputs recorded and compared to ``--golden``."""
     graph = load_checked(ns.graph, overrides)
-    add_player(graph, ns.bag, recorded_types(ns.bag), params={"lockstep": True, "rate": 0.0})
+    replace = ns.replace.split(",") if ns.replace else None
+    replaced = add_player(graph, ns.bag, recorded_types(ns.bag), replace=replace,
+                          params={"lockstep": True, "rate": 0.0})
+    print(f"[test] replaying {ns.bag} in place of: {', '.join(replaced)}", file=sys.stderr)
     with tempfile.TemporaryDirectory(prefix="probeless-test-") as tmp:
         out = str(Path(tmp) / "outputs.mcap")
         topics = add_recorder(graph, out, diagnostics=False, skip={PLAYER_ID})

@@ -70,10 +70,10 @@ class BagWriter:
     ``max_duration_s`` of log time. Every part is a complete MCAP file with its own schemas,
     channels and the metadata given so far.
 
-    ``compression`` defaults to ``"lz4"``: it compresses and decompresses several times faster than
-    zstd, so the recorder keeps up with uncompressed camera streams on two cores, at a somewhat
-    larger file; ``"zstd"`` is smaller and slower, ``"none"`` the fastest. (The bus benchmark can
-    refine this choice.) Files are always chunked (``chunk_size`` bytes before compression) with
+    ``compression`` defaults to ``"lz4"``: it is fast enough to keep up with uncompressed camera
+    streams on two cores, where zstd is noticeably slower (720p RGB + uint16 depth with sensor
+    noise, one core: lz4 writes 277 MB/s and reads 2.2 GB/s, zstd 188 MB/s and 1.0 GB/s, for a
+    file about 25% smaller); ``"none"`` is the fastest. The bus benchmark can refine this choice. Files are always chunked (``chunk_size`` bytes before compression) with
     chunk CRCs and message indexes, so they seek fast and a killed recording stays readable up to
     its last complete chunk.
 

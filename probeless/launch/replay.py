@@ -42,6 +42,8 @@ def add_recorder(graph: Graph, path: str, *, topics: list[str] | None = None, di
         for out, topic in node_topics(graph, decl, diagnostics).items():
             available[topic] = (decl.id, out)
     chosen = topics or sorted(available)
+    if not chosen:
+        raise GraphError("nothing to record: no node left in the graph publishes a topic", file=graph.file)
     unknown = [t for t in chosen if t not in available]
     if unknown:
         raise GraphError(f"cannot record {unknown}: not a topic of this graph (topics: {sorted(available)})",

@@ -232,7 +232,10 @@ class NodeRuntime:
         """Pop the oldest queued message across inputs, or wait until one arrives or a timer is due."""
         with self.cond:
             best = None
+            waiting_for_clock = CLOCK_INPUT in self.queues and not self.clock.simulated
             for q in self.queues.values():
+                if waiting_for_clock and q.name != CLOCK_INPUT:
+                    continue  # on replay, nothing is dispatched before the first recorded time is known
                 head = q.head_arrival()
                 if head is not None and (best is None or head < best.head_arrival()):
                     best = q
