@@ -58,9 +58,6 @@ def cmd_test(ns: argparse.Namespace) -> int:
     return run_test(ns, parse_overrides(ns.args))
 
 
-def cmd_topic(ns: argparse.Namespace) -> int:
-    return ns.topic_func(ns)
-
 
 def cmd_graph(ns: argparse.Namespace) -> int:
     from probeless.launch.draw import draw

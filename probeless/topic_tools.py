@@ -210,7 +210,7 @@ def graph_topics(graph: RunningGraph) -> dict[str, Topic]:
                 type_name = NodeStatus.TYPE_NAME
             else:
                 type_name = next((s["type_name"] for s in subs if s.get("type_name")), None)
-                type_name = type_name or _class_output_type(node["node"], out)
+                type_name = type_name or spec.get("type_name") or _class_output_type(node["node"], out)
             topics[name] = Topic(name, type_name, nid, node["node"], node["endpoint"],
                                  [Subscriber(s["node_id"], s["name"], s["policy"], s["queue_size"]) for s in subs],
                                  expected=max(len(subs), int(spec.get("subscribers") or 0)))

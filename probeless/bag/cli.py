@@ -20,6 +20,9 @@ def add_info_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("paths", nargs="+", metavar="FILE",
                    help="MCAP file(s); the name of a split recording (run.mcap for run_000.mcap, ...) works too")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--digest", action="store_true",
+                   help="also compute content_digest: SHA-256 of all messages except diagnostics (reads "
+                        "every message; equal for two lockstep replays of the same run)")
     p.set_defaults(func=cmd_info)
     return p
 
@@ -45,10 +48,20 @@ def cmd_info(ns: argparse.Namespace) -> int:
 
     try:
         report = info_report(ns.paths)
+        if getattr(ns, "digest", False):
+            from probeless.bag.compare import content_digest
+            from probeless.bag.writer import recording_paths
+
+            report["content_digest"] = [content_digest(str(p)) for p in recording_paths(ns.paths)]
     except BagError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    print(json.dumps(report, indent=2) if getattr(ns, "json", False) else format_info(report))
+    if getattr(ns, "json", False):
+        print(json.dumps(report, indent=2))
+    else:
+        print(format_info(report))
+        for digest in report.get("content_digest", []):
+            print(f"content digest: {digest}")
     return 0
 
 

@@ -99,7 +99,8 @@ def cmd_play(ns: argparse.Namespace) -> int:
     params = {"path": ns.bag, "topics": chosen, "remap": list(ns.remap), **_player_params(ns)}
     graph = Graph(file=ns.bag)
     graph.nodes[PLAYER_ID] = NodeDecl(PLAYER_ID, "bag_player", ns.bag, 0, outputs=played, params=params,
-                                      topics={t: t for t in played})
+                                      topics={t: t for t in played},
+                                      output_types={remap.get(t, t): types[t] for t in chosen})
     errors = validate(graph)
     if errors:
         raise errors[0]

@@ -79,6 +79,7 @@ class NodeDecl:
     restart_backoff_s: float = 0.5
     host: str | None = None
     topics: dict[str, str] = field(default_factory=dict)  # output -> topic, when not "<id>/<output>"
+    output_types: dict[str, str] = field(default_factory=dict)  # output -> type name, for "*" outputs (player)
 
 
 @dataclass

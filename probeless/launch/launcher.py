@@ -219,7 +219,8 @@ class Launcher:
                 c.proc.wait()
                 self.failed.append(c.node_id)
         for c in alive:
-            if c.proc.returncode != 0 and c.node_id not in self.failed:
+            # -SIGTERM: the node was still starting (no handler yet) when we stopped it; that is clean
+            if c.proc.returncode not in (0, -signal.SIGTERM) and c.node_id not in self.failed:
                 self.log(f"node {c.node_id} exited with code {c.proc.returncode} while stopping")
                 self.failed.append(c.node_id)
         for c in self.children.values():

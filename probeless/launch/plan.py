@@ -13,6 +13,13 @@ from probeless.launch.validate import host_endpoint, split_source
 from probeless.runtime.node import output_type
 
 
+def _output(decl, name: str) -> dict[str, Any]:
+    out = {"topic": decl.topics.get(name, f"{decl.id}/{name}")}
+    if name in decl.output_types:
+        out["type_name"] = decl.output_types[name]
+    return out
+
+
 def new_run_dir() -> Path:
     """A fresh private directory for this run's ipc sockets and graph spec (short: ipc paths are limited)."""
     base = Path(os.environ.get("PROBELESS_RUN_DIR") or Path(tempfile.gettempdir()) / f"probeless-{os.getuid()}")
@@ -28,7 +35,7 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
     endpoints = {}
     for index, decl in enumerate(graph.nodes.values()):
         endpoints[decl.id] = host_endpoint(graph, decl) or f"ipc://{run_dir}/{index}.pub"
-    subscribers: dict[str, int] = {}
+    subscribers: dict[str, list[list[str]]] = {}  # topic -> [[node_id, input], ...]
     nodes = {}
     for index, decl in enumerate(graph.nodes.values()):
         cls = graph.node_classes[decl.id]
@@ -41,27 +48,30 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
                 src_id, out = split_source(graph, inp.source)
                 topic = graph.nodes[src_id].topics.get(out, f"{src_id}/{out}")
                 _, typ = output_type(graph.node_classes[src_id], out)
+                recorded_type = graph.nodes[src_id].output_types.get(out)
                 entry.update(topic=topic, source_node=src_id, output=out, endpoint=endpoints[src_id],
-                             type_name=typ.TYPE_NAME if typ is not None else None)
-                subscribers[topic] = subscribers.get(topic, 0) + 1
+                             type_name=typ.TYPE_NAME if typ is not None else recorded_type)
+                subscribers.setdefault(topic, []).append([decl.id, inp.name])
             inputs.append(entry)
         names = decl.outputs if decl.outputs is not None else [o for o in cls.OUTPUTS if not o.endswith("/*")]
         nodes[decl.id] = {"id": decl.id, "index": index, "node": decl.node, "params": decl.params,
                           "file": decl.file, "line": decl.line, "endpoint": endpoints[decl.id],
                           "host": decl.host, "inputs": inputs, "restart": decl.restart,
                           "max_restarts": decl.max_restarts, "restart_backoff_s": decl.restart_backoff_s,
-                          "outputs": {o: {"topic": decl.topics.get(o, f"{decl.id}/{o}")} for o in names}}
+                          "outputs": {o: _output(decl, o) for o in names}}
     for node in nodes.values():
         for inp in node["inputs"]:
             if "topic" in inp:
                 node_out = nodes[inp["source_node"]]["outputs"].setdefault(inp["output"], {"topic": inp["topic"]})
-                node_out["subscribers"] = subscribers[inp["topic"]]
+                node_out["subscribers"] = len(subscribers[inp["topic"]])
+                node_out["subscriber_ids"] = subscribers[inp["topic"]]
     if clock_node is not None:
         clock_topic = f"{clock_node}/clock"
         followers = [n for n in nodes.values() if n["id"] != clock_node]
         for node in followers:
             node["clock"] = {"topic": clock_topic, "endpoint": endpoints[clock_node], "source_node": clock_node}
-        nodes[clock_node]["outputs"]["clock"] = {"topic": clock_topic, "subscribers": len(followers)}
+        nodes[clock_node]["outputs"]["clock"] = {"topic": clock_topic, "subscribers": len(followers),
+                                                 "subscriber_ids": [[n["id"], "__clock__"] for n in followers]}
     for node in nodes.values():
         for out in node["outputs"].values():
             out.setdefault("subscribers", 0)

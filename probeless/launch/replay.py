@@ -95,7 +95,8 @@ def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: lis
     player_params = {"path": bag, "topics": sorted(set(needed.values())),
                      "remap": [f"{a}:={b}" for a, b in sorted(remap.items())], **(params or {})}
     graph.nodes[PLAYER_ID] = NodeDecl(PLAYER_ID, "bag_player", graph.file, 0, outputs=sorted(needed),
-                                      params=player_params, topics={t: t for t in needed})
+                                      params=player_params, topics={t: t for t in needed},
+                                      output_types={t: played[t][1] for t in needed})
     graph.node_classes[PLAYER_ID] = resolve_node("bag_player")
     return list(replace)
 

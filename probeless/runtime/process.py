@@ -32,7 +32,7 @@ from probeless.runtime.clock import NodeClock
 from probeless.runtime.node import Node, output_type
 from probeless.runtime.params import load_params
 from probeless.runtime.queues import InputQueue
-from probeless.runtime.receiver import InputWire, Receiver
+from probeless.runtime.receiver import InputWire, Receiver, hello_topic
 from probeless.runtime.registry import resolve_node
 from probeless.runtime.stats import Timings
 from probeless.runtime.timers import TimerSet
@@ -150,7 +150,7 @@ class NodeRuntime:
     def _start_receiver(self) -> None:
         control = (self.control_endpoint, self.node_id) if self.control_endpoint else None
         self.receiver = Receiver(self.zctx, self.wires, self.queues, self.cond, self.wake_endpoint,
-                                 control=control, status=self._status)
+                                 control=control, status=self._status, node_id=self.node_id)
         self.wake_tx = self.zctx.socket(zmq.PAIR)
         self.wake_tx.connect(self.wake_endpoint)
         self.receiver.start()
@@ -165,17 +165,18 @@ class NodeRuntime:
 
     def _barrier(self) -> bool:
         """Wait for all expected subscribers, report ready, wait for start. False if stopped first."""
-        expected = {out["topic"]: out["subscribers"] for out in self.spec["outputs"].values()}
+        expected = [(out["topic"], sub) for out in self.spec["outputs"].values() for sub in out.get("subscriber_ids", [])]
         last_note = time.monotonic()
         while not self.stop_requested:
             self.publisher.poll_subscriptions(50)
-            missing = {t: n for t, n in expected.items() if self.publisher.subscriptions[t] < n}
+            subs = self.publisher.subscriptions
+            missing = [(t, sub) for t, sub in expected if subs[hello_topic(*sub).decode()] < 1 or subs[t] < 1]
             if not missing:
                 break
             if time.monotonic() - last_note > 5:
                 last_note = time.monotonic()
                 self.log.info("waiting for subscribers: %s",
-                              ", ".join(f"{t} ({self.publisher.subscriptions[t]}/{n})" for t, n in missing.items()))
+                              ", ".join(f"{node}.{inp} on {t}" for t, (node, inp) in missing))
         if self.stop_requested or not self.control_endpoint:
             return not self.stop_requested
         self.receiver.send_control(b"ready", wake_tx=self.wake_tx)

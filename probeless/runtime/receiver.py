@@ -54,6 +54,15 @@ class RawMessage:
     recv_ns: int           # this process's wall clock at receive [ns]
 
 
+def hello_topic(node_id: str, input_name: str) -> bytes:
+    """A subscription no message ever matches, telling the publisher which input subscribed.
+
+    The readiness barrier waits for the hello of every wired input, so an extra subscriber (a
+    topic tool, an attached recorder) can never stand in for a node that has not connected yet.
+    """
+    return b"\0hello/" + f"{node_id}/{input_name}".encode()
+
+
 def peek_raw(topic: str, frames: list, recv_ns: int) -> RawMessage:
     """Envelope facts of raw frames ``[topic, meta, ...]``; SchemaError when the metadata is malformed."""
     try:
@@ -71,7 +80,8 @@ class Receiver(threading.Thread):
 
     def __init__(self, zctx: zmq.Context, wires: list[InputWire], queues: dict[str, InputQueue],
                  cond: threading.Condition, wake_endpoint: str, max_bytes: int = wire.MAX_MESSAGE_BYTES,
-                 control: tuple[str, str] | None = None, status: Callable[[], dict] | None = None):
+                 control: tuple[str, str] | None = None, status: Callable[[], dict] | None = None,
+                 node_id: str = ""):
         super().__init__(name="probeless-receiver", daemon=True)
         self.cond, self.queues, self.max_bytes = cond, queues, max_bytes
         self.stopping = False
@@ -97,6 +107,7 @@ class Receiver(threading.Thread):
             s.setsockopt(zmq.MAXMSGSIZE, max_bytes)  # refuse oversized frames before allocating them
             s.connect(w.endpoint)
             s.setsockopt(zmq.SUBSCRIBE, w.topic.encode())
+            s.setsockopt(zmq.SUBSCRIBE, hello_topic(node_id, w.name))  # names this subscriber to the barrier
             self.socks[s] = w
         self.topic_bytes = {s: w.topic.encode() for s, w in self.socks.items()}
         self.pending: dict[zmq.Socket, tuple] = {}
