@@ -148,7 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--update-golden", action="store_true", help="overwrite the golden recording")
     c.set_defaults(func=cmd_test)
 
-    from probeless.topic_tools import add_topic_parser
+    from probeless.topics import add_topic_parser
 
     add_topic_parser(sub)
 

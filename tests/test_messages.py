@@ -9,8 +9,8 @@ import pytest
 
 from message_examples import EXAMPLES, examples, header
 from probeless.errors import SchemaError
-from probeless.messages import (BrightnessDelta, CameraInfo, Cubemap, CubemapLevel, DepthImage, Floorplan, Image,
-                                PointCloud, PoseStamped, SHCoefficients, TriangleMesh, registry, schema_of)
+from probeless.messages import (CameraInfo, CubemapLevel, DepthImage, Image,
+                                PointCloud, TriangleMesh, registry, schema_of)
 from probeless.messages.geometry import (invert_transform, matrix_from_quat, quat_conjugate, quat_from_matrix,
                                          quat_multiply, quat_normalize, transform_from)
 from probeless.messages.lighting import texel_direction

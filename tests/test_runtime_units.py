@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from probeless.errors import ParamError
-from probeless.messages import Header, Image, Tick
+from probeless.messages import Header, Tick
 from probeless.nodes.demo.pattern import PatternSource, pattern_image
 from probeless.nodes.demo.summary import SummarySink, summarize
 from probeless.nodes.demo.transform import ImageTransform, transform_image

@@ -16,11 +16,14 @@ Three measurements, every graph run through the real :class:`~probeless.launch.l
      Side by side in the same run (alternating order), a raw ``mcap.writer.Writer`` in this process
      writes the same messages (same payload bytes: the msgpack-framed wire frames, same chunk size,
      compression and CRCs) as fast as it can. ``record_ratio`` = ours / raw (median of reps).
+     CPU (user + sys) and minor page faults per payload byte are reported for both sides (ours: every
+     node process, start-up and frame generation included; raw: this process during the write).
 
 2. **Replay timing.** ``TimingSource`` publishes 600 320x240 images at random 5-30 ms intervals
    (``--quick``: 100); the recording is replayed by ``bag_player`` (``add_player``) to a raw
    ``TimingSink`` at ``--rate 1`` and ``--rate 2``; error = |replayed receive interval - recorded
-   log-time interval / rate| per consecutive message pair, p50/p99/max in ms.
+   log-time interval / rate| per consecutive message pair, p50/p99/max in ms; errors over 1 ms are
+   counted, and how many of them touch a message that starts or ends an MCAP chunk.
 
 3. **Lockstep.** The timing recording drives two ``JitterWorker`` nodes (truly random sleeps, so
    their outputs reach the recorder in a different order every run), replayed twice with
@@ -39,6 +42,7 @@ import json
 import math
 import os
 import platform
+import resource
 import statistics
 import sys
 import tempfile
@@ -130,8 +134,10 @@ def run_ours_record(tmp: Path, compression: str, ticks: int, max_rate: bool, tag
                                                            out=json.dumps(str(out))))
     add_recorder(graph, str(bag), topics=list(CAMERA_TOPICS),
                  params={"compression": compression, "command": "probeless bench bag"})
+    ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     try:
         wall = _launch(graph, f"record ({compression}, {tag})")
+        ru = resource.getrusage(resource.RUSAGE_CHILDREN)
         src = json.loads(out.read_text())
         fig = _check_recording(bag, {f"camera/{k}": v for k, v in src["published"].items()})
     finally:
@@ -139,7 +145,9 @@ def run_ours_record(tmp: Path, compression: str, ticks: int, max_rate: bool, tag
     span = (fig["closed_ns"] - fig["first_ns"]) / 1e9
     fig.update(wall_s=wall, record_s=span, mb_per_s=fig["bytes"] / 1e6 / span if span > 0 else float("nan"),
                publish_s=(src["last_ns"] - src["first_ns"]) / 1e9, missed_ticks=src["missed_ticks"],
-               ticks=src["ticks"], close_lag_s=(fig["closed_ns"] - src["last_ns"]) / 1e9)
+               ticks=src["ticks"], close_lag_s=(fig["closed_ns"] - src["last_ns"]) / 1e9,
+               cpu_s=(ru.ru_utime - ru0.ru_utime) + (ru.ru_stime - ru0.ru_stime), sys_s=ru.ru_stime - ru0.ru_stime,
+               minor_faults=ru.ru_minflt - ru0.ru_minflt)
     fig["messages"] = sum(fig["recorded"].values())
     return fig
 
@@ -180,6 +188,7 @@ def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]
     path = tmp / f"raw-{tag}.mcap"
     seq: dict[str, int] = {}
     try:
+        ru0 = resource.getrusage(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
         with open(path, "xb") as f:
             w = Writer(f, chunk_size=chunk_size, compression=ctype, enable_crcs=True)
@@ -201,12 +210,14 @@ def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]
                 seq[topic] = s + 1
             w.finish()
         span = time.perf_counter() - t0
+        ru = resource.getrusage(resource.RUSAGE_SELF)
         size = path.stat().st_size
     finally:
         _unlink(path)
     nbytes = sum(len(p) for _, p in payloads)
     return {"bytes": nbytes, "file_bytes": size, "record_s": span, "mb_per_s": nbytes / 1e6 / span,
-            "messages": len(payloads)}
+            "messages": len(payloads), "cpu_s": (ru.ru_utime - ru0.ru_utime) + (ru.ru_stime - ru0.ru_stime),
+            "sys_s": ru.ru_stime - ru0.ru_stime, "minor_faults": ru.ru_minflt - ru0.ru_minflt}
 
 
 # -- 2. replay timing ---------------------------------------------------------------------------------
@@ -248,12 +259,15 @@ def record_timing(tmp: Path, count: int) -> tuple[Path, list[tuple[int, int]]]:
     _launch(graph, "timing record")
     with BagReader(bag) as reader:
         rec = [(m.sequence, m.log_time_ns) for m in reader.messages("source/image")]
+        # log times that start or end an MCAP chunk (the player decompresses a chunk when it reaches it)
+        edges = {t for c in getattr(reader, "_chunks", ()) for t in (c.start_ns, c.end_ns)}
     if len(rec) != count:
         raise RuntimeError(f"timing recording holds {len(rec)} of {count} messages")
-    return bag, rec
+    return bag, rec, edges
 
 
-def replay_timing(tmp: Path, bag: Path, recorded: list[tuple[int, int]], rate: float) -> dict:
+def replay_timing(tmp: Path, bag: Path, recorded: list[tuple[int, int]], rate: float,
+                  edges: set[int] = frozenset()) -> dict:
     from probeless.bag.run import recorded_types
     from probeless.launch.replay import PLAYER_ID, add_player
 
@@ -266,14 +280,21 @@ def replay_timing(tmp: Path, bag: Path, recorded: list[tuple[int, int]], rate: f
     got = json.loads(out.read_text())
     recv = dict(zip(got["seqs"], got["recv_ns"]))
     pairs = [(recv.get(s), t) for s, t in recorded]
-    errs = [abs((r1 - r0) - (t1 - t0) / rate) / 1e6
-            for (r0, t0), (r1, t1) in zip(pairs, pairs[1:]) if r0 is not None and r1 is not None]
+    errs, at_edge = [], []
+    for (r0, t0), (r1, t1) in zip(pairs, pairs[1:]):
+        if r0 is not None and r1 is not None:
+            errs.append(abs((r1 - r0) - (t1 - t0) / rate) / 1e6)
+            at_edge.append(t0 in edges or t1 in edges)
     e = np.asarray(errs) if errs else np.asarray([float("nan")])
     intervals = np.diff([t for _, t in recorded]) / 1e6
     return {"rate": rate, "messages": count, "received": len(got["seqs"]),
             "complete": got["seqs"] == [s for s, _ in recorded],
             "p50_ms": float(np.percentile(e, 50)), "p99_ms": float(np.percentile(e, 99)), "max_ms": float(e.max()),
             "mean_ms": float(e.mean()),
+            # how many errors exceed 1 ms, and how many of those touch a message that starts/ends a chunk
+            "over_1ms": sum(x > 1.0 for x in errs),
+            "over_1ms_at_chunk_edge": sum(x > 1.0 and a for x, a in zip(errs, at_edge)),
+            "intervals_at_chunk_edge": sum(at_edge), "intervals": len(errs),
             "recorded_interval_ms": {"min": float(intervals.min()), "max": float(intervals.max()),
                                      "mean": float(intervals.mean())}}
 
@@ -363,13 +384,15 @@ def run_bench(quick: bool = False) -> dict:
         del payloads
 
         # 2. replay timing
-        bag, recorded = record_timing(tmp, cfg["timing_messages"])
+        bag, recorded, edges = record_timing(tmp, cfg["timing_messages"])
         timing = {}
         for rate in (1.0, 2.0):
-            fig = replay_timing(tmp, bag, recorded, rate)
+            fig = replay_timing(tmp, bag, recorded, rate, edges)
             timing[f"rate_{rate:g}"] = fig
             log(f"replay rate {rate:g}: interval error p50 {fig['p50_ms']:.3f} ms p99 {fig['p99_ms']:.3f} ms "
-                f"max {fig['max_ms']:.3f} ms ({fig['received']}/{fig['messages']} received)")
+                f"max {fig['max_ms']:.3f} ms ({fig['received']}/{fig['messages']} received; "
+                f"{fig['over_1ms']} errors > 1 ms, {fig['over_1ms_at_chunk_edge']} of them at a chunk edge, "
+                f"{fig['intervals_at_chunk_edge']}/{fig['intervals']} intervals touch one)")
 
         # 3. lockstep determinism
         n = len(recorded)
@@ -390,7 +413,14 @@ def run_bench(quick: bool = False) -> dict:
                      "payload_mb": ours[0]["bytes"] / 1e6, "file_mb": ours[0]["file_bytes"] / 1e6,
                      "raw_file_mb": raw[0]["file_bytes"] / 1e6,
                      "ours_runs_mb_per_s": [x["mb_per_s"] for x in ours],
-                     "raw_runs_mb_per_s": [x["mb_per_s"] for x in raw]}
+                     "raw_runs_mb_per_s": [x["mb_per_s"] for x in raw],
+                     # CPU (user + sys) per GB of payload: ours = every node process, raw = this process
+                     "ours_cpu_s_per_gb": _median([x["cpu_s"] / x["bytes"] * 1e9 for x in ours]),
+                     "raw_cpu_s_per_gb": _median([x["cpu_s"] / x["bytes"] * 1e9 for x in raw]),
+                     "ours_sys_s_per_gb": _median([x["sys_s"] / x["bytes"] * 1e9 for x in ours]),
+                     "raw_sys_s_per_gb": _median([x["sys_s"] / x["bytes"] * 1e9 for x in raw]),
+                     "ours_minor_faults_per_mb": _median([x["minor_faults"] / x["bytes"] * 1e6 for x in ours]),
+                     "raw_minor_faults_per_mb": _median([x["minor_faults"] / x["bytes"] * 1e6 for x in raw])}
     rt = {"duration_s": cfg["realtime_s"], "rate_hz": RATE_HZ, "fisheye_rate_hz": RATE_HZ / 2,
           "published": {c: realtime[c]["published"] for c in COMPRESSIONS},
           "recorded": {c: realtime[c]["recorded"] for c in COMPRESSIONS},
@@ -453,11 +483,14 @@ def print_table(result: dict) -> None:
     t = Table(title=f"probeless bench bag: recorder vs raw mcap Writer, max rate, median of "
                     f"{result['settings']['repetitions']} run(s)",
               caption=f"goal record_ratio >= {g['record_ratio_min']}")
-    for c in ("compression", "messages", "payload MB", "file MB", "ours MB/s", "raw MB/s", "record_ratio", "lossless"):
+    for c in ("compression", "messages", "payload MB", "file MB", "ours MB/s", "raw MB/s", "record_ratio",
+              "CPU s/GB ours", "CPU s/GB raw", "faults/MB ours", "faults/MB raw", "lossless"):
         t.add_column(c, justify="left" if c == "compression" else "right")
     for c, e in result["record"].items():
         t.add_row(c, str(sum(e["messages"].values())), f"{e['payload_mb']:.0f}", f"{e['file_mb']:.0f}",
                   f"{e['ours_mb_per_s']:.1f}", f"{e['raw_mb_per_s']:.1f}", f"{e['record_ratio']:.3f}",
+                  f"{e['ours_cpu_s_per_gb']:.2f}", f"{e['raw_cpu_s_per_gb']:.2f}",
+                  f"{e['ours_minor_faults_per_mb']:.0f}", f"{e['raw_minor_faults_per_mb']:.0f}",
                   "yes" if e["lossless"] else "NO")
     console.print(t)
     rt = result["realtime"]
@@ -473,11 +506,13 @@ def print_table(result: dict) -> None:
     console.print(t)
     t = Table(title="replay timing: |replayed - recorded interval / rate|",
               caption=f"goal p99 <= {g['replay_p99_ms_max']} ms at rate 1")
-    for c in ("rate", "messages", "received", "p50 ms", "p99 ms", "max ms"):
+    for c in ("rate", "messages", "received", "p50 ms", "p99 ms", "max ms", "> 1 ms (at chunk edge)"):
         t.add_column(c, justify="right")
     for e in result["replay_timing"].values():
         t.add_row(f"{e['rate']:g}", str(e["messages"]), str(e["received"]), f"{e['p50_ms']:.3f}",
-                  f"{e['p99_ms']:.3f}", f"{e['max_ms']:.3f}")
+                  f"{e['p99_ms']:.3f}", f"{e['max_ms']:.3f}",
+                  f"{e['over_1ms']} ({e['over_1ms_at_chunk_edge']}; {e['intervals_at_chunk_edge']}/{e['intervals']} "
+                  f"intervals touch an edge)")
     console.print(t)
     ls = result["lockstep"]
     t = Table(title="lockstep determinism (2 workers with truly random sleeps -> recorder)")

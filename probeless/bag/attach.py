@@ -13,7 +13,7 @@ from probeless.errors import BagError
 from probeless.launch.plan import new_run_dir
 from probeless.launch.replay import RECORDER_ID
 from probeless.runtime.process import NodeRuntime
-from probeless.topic_tools import graph_topics, select_graph
+from probeless.topics import graph_topics, select_graph
 
 
 def record_running_graph(path: str, topics: list[str] | None, params: dict[str, Any], *,

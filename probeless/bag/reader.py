@@ -267,7 +267,7 @@ class BagReader:
                 excess = reg - (off if first_in_chunk else 0)
                 if i > 0 and excess > 0:
                     sizes[i - 1] -= excess
-        for (k, off, cid, t), size in zip(entries, sizes):
+        for (_, _, cid, t), size in zip(entries, sizes):
             s = stats[cid]
             s[0] += 1
             s[1], s[2] = min(s[1], t), max(s[2], t)

@@ -10,10 +10,10 @@ from pathlib import Path
 
 from probeless.bag.compare import compare_recordings
 from probeless.bag.reader import BagReader
-from probeless.errors import BagError, ProbelessError
+from probeless.errors import BagError
 from probeless.launch.graph import Graph, NodeDecl
 from probeless.launch.launcher import Launcher, load_checked
-from probeless.launch.replay import PLAYER_ID, RECORDER_ID, add_player, add_recorder
+from probeless.launch.replay import PLAYER_ID, add_player, add_recorder
 from probeless.launch.validate import validate
 from probeless.nodes.bag.player import parse_remaps
 

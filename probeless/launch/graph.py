@@ -27,13 +27,13 @@ starting with ``/`` is absolute.
 from __future__ import annotations
 
 import difflib
-import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from probeless.errors import GraphError
+from probeless.launch.args import Substituter, resolve_args
 from probeless.launch.yamlload import LineDict, LineList, load_yaml
 from probeless.runtime.queues import POLICIES
 
@@ -43,9 +43,7 @@ NODE_KEYS = {"id", "node", "inputs", "outputs", "params", "restart", "max_restar
 INPUT_KEYS = {"source", "queue_size", "policy"}
 INCLUDE_KEYS = {"file", "namespace", "args"}
 DEFAULT_QUEUE = {"policy": "drop_oldest", "queue_size": 10}
-_SUBST = re.compile(r"\$\((arg|env|dirname)(?:\s+([^)\s]+))?(?:\s+([^)]*))?\)")
 _TIMER = re.compile(r"^timer/(hz|ms|s)/([0-9]*\.?[0-9]+)$")
-_NOT_GIVEN = object()  # a required argument that was not passed (reported once, not at every use)
 _ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*(/[A-Za-z_][A-Za-z0-9_\-]*)*$")
 
 
@@ -113,10 +111,10 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
     for key in doc:
         if key not in TOP_KEYS:
             err(f"unknown top-level key{_suggest(key, TOP_KEYS)}", doc.line_of(key), key=key)
-    args = _resolve_args(doc.get("args"), overrides, err, doc.line_of("args"), is_root=not stack)
+    args = resolve_args(doc.get("args"), overrides, err, doc.line_of("args"), is_root=not stack)
     if not stack:
         graph.args = dict(args)
-    subst = _Substituter(args, path.parent, err)
+    subst = Substituter(args, path.parent, err)
     for name, host in (_mapping(doc, "hosts", err) or {}).items():
         graph.hosts[str(name)] = subst(host, doc.line_of("hosts"))
     for i, inc in enumerate(_sequence(doc, "include", err)):
@@ -163,72 +161,6 @@ def _sequence(doc: LineDict, key: str, err) -> list:
     return value
 
 
-def _resolve_args(decl: Any, overrides: dict, err, line: int, is_root: bool) -> dict:
-    decl = decl or {}
-    if not isinstance(decl, dict):
-        err("'args' must be a mapping of name: default", line, key="args")
-        return {}
-    out = {}
-    for name, spec in decl.items():
-        default = spec.get("default") if isinstance(spec, dict) else spec
-        required = isinstance(spec, dict) and "default" not in spec
-        if name in overrides:
-            out[name] = overrides[name]
-        elif required:
-            err("required argument not given (pass name:=value)", decl.line_of(name), key=f"args.{name}")
-            out[name] = _NOT_GIVEN
-        else:
-            out[name] = default
-    for name in overrides:
-        if name not in decl and is_root:
-            err(f"unknown argument {name!r} (declared: {', '.join(map(str, decl)) or 'none'})", line, key=name)
-    return out
-
-
-class _Substituter:
-    """Applies $(arg)/$(env)/$(dirname) to every string in a value."""
-
-    def __init__(self, args: dict, dirname: Path, err):
-        self.args, self.dirname, self.err = args, dirname, err
-
-    def __call__(self, value: Any, line: int) -> Any:
-        if isinstance(value, str):
-            return self._string(value, line)
-        if isinstance(value, LineDict):
-            out = LineDict((k, self(v, value.line_of(k))) for k, v in value.items())
-            out.line, out.lines = value.line, value.lines
-            return out
-        if isinstance(value, LineList):
-            out = LineList(self(v, value.lines[i]) for i, v in enumerate(value))
-            out.line, out.lines = value.line, value.lines
-            return out
-        return value
-
-    def _string(self, text: str, line: int) -> Any:
-        whole = _SUBST.fullmatch(text)
-        if whole:
-            return self._value(whole, line)
-        return _SUBST.sub(lambda m: str(self._value(m, line)), text)
-
-    def _value(self, m: re.Match, line: int) -> Any:
-        kind, name, default = m.group(1), m.group(2), m.group(3)
-        if kind == "dirname":
-            return str(self.dirname)
-        if kind == "env":
-            if name in os.environ:
-                return os.environ[name]
-            if default is None:
-                self.err(f"environment variable {name!r} is not set", line, key=f"$(env {name})")
-                return ""
-            return default
-        if name not in self.args:
-            self.err(f"undeclared argument {name!r} in substitution (declare it under 'args:')", line,
-                     key=f"$(arg {name})")
-            return m.group(0)
-        value = self.args[name]
-        return m.group(0) if value is _NOT_GIVEN else value
-
-
 def _include(inc: Any, line: int, parent: Path, ns: str, graph: Graph, stack: tuple, err) -> None:
     if not isinstance(inc, dict) or "file" not in inc:
         err("an include needs at least 'file'", line, key="include")
@@ -251,7 +183,7 @@ def _include(inc: Any, line: int, parent: Path, ns: str, graph: Graph, stack: tu
         graph.errors.append(exc)
 
 
-def _parse_node(raw: Any, line: int, ns: str, file: str, subst: _Substituter, err) -> NodeDecl | None:
+def _parse_node(raw: Any, line: int, ns: str, file: str, subst: Substituter, err) -> NodeDecl | None:
     if not isinstance(raw, LineDict):
         err("each node must be a mapping with 'id' and 'node'", line)
         return None

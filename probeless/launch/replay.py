@@ -25,7 +25,7 @@ def node_topics(graph: Graph, decl: NodeDecl, diagnostics: bool = False) -> dict
     out = {o: decl.topics.get(o, f"{decl.id}/{o}") for o in names}
     wired = {split_source(graph, i.source) for d in graph.nodes.values() for i in d.inputs.values()
              if i.timer_period_ns is None}
-    for src, o in (w for w in wired if w and w[0] == decl.id):
+    for _, o in (w for w in wired if w and w[0] == decl.id):
         out.setdefault(o, decl.topics.get(o, f"{decl.id}/{o}"))
     if diagnostics:
         out["diagnostics"] = f"{decl.id}/diagnostics"

@@ -10,18 +10,15 @@ applies each input's queue policy, so a slow callback never stalls upstream for 
 from __future__ import annotations
 
 import logging
-import threading
 import time
 from collections import Counter
-from dataclasses import dataclass
 from typing import Callable
 
 import zmq
 
 from probeless import wire
-from probeless.errors import SchemaError, TransportError
+from probeless.errors import TransportError
 from probeless.messages.base import Message
-from probeless.runtime.queues import InputQueue
 
 log = logging.getLogger("probeless.transport")
 SEND_HWM = 16
