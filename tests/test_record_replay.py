@@ -272,3 +272,14 @@ nodes:
         proc.communicate(timeout=30)
     seqs = [m.sequence for m in BagReader(out).messages("src/image")]
     assert len(seqs) > 50 and seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # contiguous: lossless
+
+
+def test_replaying_an_unknown_type_or_old_schema_version_is_an_error(tmp_path, recorded, capsys):
+    from probeless.bag.schema import check_schemas
+    from probeless.errors import BagError
+
+    with pytest.raises(BagError, match="topic 'a/b' was recorded with sensor/Image schema version 7"):
+        check_schemas("x.mcap", {"a/b": ("sensor/Image", 7)})
+    with pytest.raises(BagError, match="topic 'a/c' has message type 'vendor/Thing', unknown to this build"):
+        check_schemas("x.mcap", {"a/c": ("vendor/Thing", 1)})
+    check_schemas("x.mcap", {"a/b": ("sensor/Image", 1)})

@@ -10,15 +10,59 @@ recorded time to every node of the graph; its ``epoch`` grows at each loop.
 
 from __future__ import annotations
 
+import queue
+import threading
 import time
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Callable, Iterator
 
 from probeless.bag.reader import BagMessage, BagReader
+from probeless.bag.schema import check_schemas
 from probeless.messages.header import Clock, Header
 from probeless.runtime import Node, param
 
 CLOCK_PERIOD_NS = 10_000_000
+READ_AHEAD = 64  # messages decoded ahead of playback
+PRECISE_SLEEP_S = 0.003  # a message due this soon is waited for with time.sleep, not the 1 ms timer
+_END = object()
+
+
+class ReadAhead(threading.Thread):
+    """Reads messages on its own thread into a bounded queue, so chunk decompression (which
+    releases the GIL) never sits between two publishes on the player's thread."""
+
+    def __init__(self, messages: Callable[[], Iterator[BagMessage]], size: int = READ_AHEAD):
+        super().__init__(name="bag-read-ahead", daemon=True)
+        self.messages = messages
+        self.queue: queue.Queue = queue.Queue(maxsize=size)
+        self.stopping = False
+        self.error: BaseException | None = None
+
+    def run(self) -> None:
+        try:
+            for msg in self.messages():
+                while not self.stopping:
+                    try:
+                        self.queue.put(msg, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if self.stopping:
+                    return
+        except BaseException as exc:  # surfaced on the player's thread
+            self.error = exc
+        self.queue.put(_END)
+
+    def next(self) -> BagMessage | None:
+        item = self.queue.get()
+        if item is _END:
+            if self.error is not None:
+                raise self.error
+            return None
+        return item
+
+    def stop(self) -> None:
+        self.stopping = True
 
 
 def parse_remaps(remaps: tuple[str, ...]) -> dict[str, str]:
@@ -56,6 +100,7 @@ class BagPlayer(Node):
         if self.reader.truncated:
             self.ctx.log.warning("%s: %s", p.path, self.reader.truncation_note)
         recorded = self.reader.topics()
+        check_schemas(p.path, {t: (i.type_name, i.version) for t, i in recorded.items() if not p.topics or t in p.topics})
         missing = [t for t in p.topics if t not in recorded]
         if missing:
             raise ValueError(f"{p.path}: no topic(s) {missing} in the recording (has: {sorted(recorded)})")
@@ -71,17 +116,20 @@ class BagPlayer(Node):
         p = self.params
         start = self.reader.start_ns + int(p.start_s * 1e9)
         end = start + int(p.duration_s * 1e9) if p.duration_s else None
-        self.messages: Iterator[BagMessage] = self.reader.messages(topics=self.topics, start_ns=start, end_ns=end)
+        if getattr(self, "ahead", None) is not None:
+            self.ahead.stop()
+        self.ahead = ReadAhead(lambda: self.reader.messages(topics=self.topics, start_ns=start, end_ns=end))
+        self.ahead.start()
         self.pending: BagMessage | None = None
         self.t0: float | None = None
         self.first_log_ns = start
 
     def _step(self) -> None:
-        """Publish every message that is due; sleep precisely for one that is due within 2 ms."""
+        """Publish every message that is due; sleep precisely for one due within PRECISE_SLEEP_S."""
         rate = self.params.rate
         while True:
             if self.pending is None:
-                self.pending = next(self.messages, None)
+                self.pending = self.ahead.next()
                 if self.pending is None:
                     self._at_end()
                     return
@@ -91,7 +139,7 @@ class BagPlayer(Node):
                 self.t0 = now - (msg.log_time_ns - self.first_log_ns) / 1e9 / (rate or 1)
             if rate > 0:
                 due = self.t0 + (msg.log_time_ns - self.first_log_ns) / 1e9 / rate
-                if due - now > 0.002:
+                if due - now > PRECISE_SLEEP_S:
                     self._tick_clock(now, rate)
                     return
                 if due > now:
@@ -123,6 +171,10 @@ class BagPlayer(Node):
         self.last_clock_ns = stamp_ns
         self.ctx.publish("clock", Clock(Header(stamp_ns, "clock"), self.params.rate, self.epoch))
         return True
+
+    def close(self) -> None:
+        if getattr(self, "ahead", None) is not None:
+            self.ahead.stop()
 
     def _at_end(self) -> None:
         if not self.params.loop:

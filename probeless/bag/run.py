@@ -10,6 +10,7 @@ from pathlib import Path
 
 from probeless.bag.compare import compare_recordings
 from probeless.bag.reader import BagReader
+from probeless.bag.schema import check_schemas
 from probeless.errors import BagError
 from probeless.launch.graph import Graph, NodeDecl
 from probeless.launch.launcher import Launcher, load_checked
@@ -53,10 +54,13 @@ def _refuse_overwrite(path: str, force: bool) -> None:
 
 
 def recorded_types(bag: str) -> dict[str, str]:
+    """topic -> message type of a recording; BagError for types or schema versions this build lacks."""
     reader = BagReader(bag)
     if reader.truncated:
         print(f"warning: {bag}: {reader.truncation_note}", file=sys.stderr)
-    return {t: info.type_name for t, info in reader.topics().items()}
+    topics = reader.topics()
+    check_schemas(bag, {t: (i.type_name, i.version) for t, i in topics.items()})
+    return {t: info.type_name for t, info in topics.items()}
 
 
 def prepare_graph(ns: argparse.Namespace, overrides: dict) -> tuple[Graph, str | None]:

@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from probeless.messages.base import ArraySpec, FieldSpec, Message, schema_of
+from probeless.errors import BagError
+from probeless.messages.base import ArraySpec, FieldSpec, Message, registry, schema_of
 
 DRAFT = "https://json-schema.org/draft/2020-12/schema"
 _SCALARS = {"int": "integer", "float": "number", "str": "string", "bool": "boolean"}
@@ -78,3 +79,14 @@ def _array_schema(spec: ArraySpec) -> dict[str, Any]:
         "minItems": 3,
         "maxItems": 3,
     }
+
+
+def check_schemas(bag: str, recorded: dict[str, tuple[str, int]]) -> None:
+    """Every recorded topic's type must be known to this build, with the same schema version."""
+    known = registry()
+    for topic, (type_name, version) in sorted(recorded.items()):
+        if type_name not in known:
+            raise BagError(f"{bag}: topic {topic!r} has message type {type_name!r}, unknown to this build")
+        if version != known[type_name].VERSION:
+            raise BagError(f"{bag}: topic {topic!r} was recorded with {type_name} schema version {version}, "
+                           f"this build has version {known[type_name].VERSION}")

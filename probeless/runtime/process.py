@@ -10,6 +10,7 @@ end-of-stream marker on a normal end. Exit code 0 on a clean end, 1 after an err
 from __future__ import annotations
 
 import faulthandler
+import gc
 import json
 import logging
 import os
@@ -133,6 +134,7 @@ class NodeRuntime:
             self.node = self.node_cls(self, params)
             with self.timed("setup"):
                 self.node.setup()
+            gc.freeze()  # set-up's objects (modules, models) leave the collector's view: shorter GC pauses
             self._start_receiver()
             if not self._barrier():
                 return self._finish(eos=False, code=0)
