@@ -114,7 +114,8 @@ class Launcher:
 
     def _spawn(self, child: Child) -> None:
         cmd = [sys.executable, "-u", "-m", "probeless.runtime.process", str(self.run_dir), child.node_id]
-        env = {**NODE_MALLOC_ENV, **os.environ}
+        tuned = os.environ.get("PROBELESS_MALLOC_TUNING", "1") != "0"
+        env = {**(NODE_MALLOC_ENV if tuned else {}), **os.environ}
         child.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
                                       start_new_session=True, preexec_fn=_die_with_parent, env=env)
         child.ready = False
