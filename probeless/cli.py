@@ -167,8 +167,30 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def split_overrides(argv: list[str]) -> tuple[list[str], list[str]]:
+    """Separate graph arguments ``name:=value`` (allowed anywhere on the line) from the rest.
+
+    The value of an option that itself takes ``from:=to`` (``--remap``, ``--arg``) stays put.
+    """
+    rest, overrides = [], []
+    for i, token in enumerate(argv):
+        takes_pair = i > 0 and argv[i - 1] in ("--remap", "--arg")
+        if ":=" in token and not token.startswith("-") and not takes_pair:
+            overrides.append(token)
+        else:
+            rest.append(token)
+    return rest, overrides
+
+
 def main(argv: list[str] | None = None) -> int:
-    ns = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    rest, overrides = split_overrides(argv)
+    ns = build_parser().parse_args(rest)
+    if hasattr(ns, "args"):
+        ns.args = list(ns.args or []) + overrides
+    elif overrides:
+        print(f"error: graph arguments {overrides} are not accepted by this command", file=sys.stderr)
+        return 2
     try:
         return ns.func(ns)
     except GraphErrors as exc:

@@ -90,3 +90,17 @@ def test_missing_file_is_a_clear_error(capsys):
 def test_shipped_graphs_validate():
     for path in (GRAPHS.parent.parent / "launch").glob("*.yaml"):
         assert validate(parse_graph(path)) == [], path
+
+
+def test_graph_arguments_are_accepted_anywhere_on_the_line():
+    from probeless.cli import split_overrides
+
+    rest, overrides = split_overrides(["launch", "g.yaml", "--duration", "2", "fps:=10", "--remap", "a:=b", "x:=1"])
+    assert rest == ["launch", "g.yaml", "--duration", "2", "--remap", "a:=b"]
+    assert overrides == ["fps:=10", "x:=1"]
+
+
+def test_check_with_argument_after_option(capsys):
+    path = str(GRAPHS.parent.parent / "launch/demo_runtime.yaml")
+    assert main(["check", path, "frames:=5"]) == 0
+    assert main(["graph", path, "--format", "dot", "frames:=5"]) == 0
