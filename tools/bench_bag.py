@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import math
 import os
 import platform
 import resource
@@ -51,6 +50,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from probeless.tools.bench_common import finite_median, log, rounded
 
 GOALS = {"record_ratio_min": 0.7, "replay_p99_ms_max": 2.0, "lockstep_identical": True, "lossless": True}
 COMPRESSIONS = ("none", "lz4")
@@ -63,8 +63,6 @@ WORKER_MAX_SLEEP_MS = 2.0
 NONLOCKSTEP_RATE = 4.0
 
 
-def log(text: str) -> None:
-    print(f"[bench] {text}", file=sys.stderr, flush=True)
 
 
 def _load(tmp: Path, name: str, text: str):
@@ -154,9 +152,10 @@ def run_ours_record(tmp: Path, compression: str, ticks: int, max_rate: bool, tag
 
 def _raw_payloads(ticks: int) -> tuple[list[tuple[str, bytes]], dict]:
     """The camera messages as the recorder stores them: msgpack-framed ``[meta, buffers...]``."""
+    from probeless.tools.bench_bag_nodes import camera_frames, camera_message
+
     from probeless import wire
     from probeless.bag.format import pack_payload
-    from probeless.tools.bench_bag_nodes import camera_frames, camera_message
 
     sizes = {"rgb": (640, 480), "depth": (640, 480), "fisheye": (1024, 1024)}
     frames = {k: camera_frames(k, *sizes[k], 8) for k in sizes}
@@ -332,19 +331,8 @@ def replay_workers(tmp: Path, bag: Path, count: int, lockstep: bool, tag: str) -
 
 
 # -- main --------------------------------------------------------------------------------------------------
-def _median(vals: list[float]) -> float:
-    vals = [v for v in vals if math.isfinite(v)]
-    return float(statistics.median(vals)) if vals else float("nan")
 
 
-def _rounded(obj: Any) -> Any:
-    if isinstance(obj, float):
-        return round(obj, 4) if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _rounded(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_rounded(v) for v in obj]
-    return obj
 
 
 def run_bench(quick: bool = False) -> dict:
@@ -407,7 +395,7 @@ def run_bench(quick: bool = False) -> dict:
     record = {}
     for c in COMPRESSIONS:
         ours, raw = runs[c]["ours"], runs[c]["raw"]
-        o, r = _median([x["mb_per_s"] for x in ours]), _median([x["mb_per_s"] for x in raw])
+        o, r = finite_median([x["mb_per_s"] for x in ours]), finite_median([x["mb_per_s"] for x in raw])
         record[c] = {"ours_mb_per_s": o, "raw_mb_per_s": r, "record_ratio": o / r,
                      "record_ratio_runs": [a["mb_per_s"] / b["mb_per_s"] for a, b in zip(ours, raw)],
                      "lossless": all(x["lossless"] for x in ours), "messages": ours[0]["recorded"],
@@ -416,12 +404,12 @@ def run_bench(quick: bool = False) -> dict:
                      "ours_runs_mb_per_s": [x["mb_per_s"] for x in ours],
                      "raw_runs_mb_per_s": [x["mb_per_s"] for x in raw],
                      # CPU (user + sys) per GB of payload: ours = every node process, raw = this process
-                     "ours_cpu_s_per_gb": _median([x["cpu_s"] / x["bytes"] * 1e9 for x in ours]),
-                     "raw_cpu_s_per_gb": _median([x["cpu_s"] / x["bytes"] * 1e9 for x in raw]),
-                     "ours_sys_s_per_gb": _median([x["sys_s"] / x["bytes"] * 1e9 for x in ours]),
-                     "raw_sys_s_per_gb": _median([x["sys_s"] / x["bytes"] * 1e9 for x in raw]),
-                     "ours_minor_faults_per_mb": _median([x["minor_faults"] / x["bytes"] * 1e6 for x in ours]),
-                     "raw_minor_faults_per_mb": _median([x["minor_faults"] / x["bytes"] * 1e6 for x in raw])}
+                     "ours_cpu_s_per_gb": finite_median([x["cpu_s"] / x["bytes"] * 1e9 for x in ours]),
+                     "raw_cpu_s_per_gb": finite_median([x["cpu_s"] / x["bytes"] * 1e9 for x in raw]),
+                     "ours_sys_s_per_gb": finite_median([x["sys_s"] / x["bytes"] * 1e9 for x in ours]),
+                     "raw_sys_s_per_gb": finite_median([x["sys_s"] / x["bytes"] * 1e9 for x in raw]),
+                     "ours_minor_faults_per_mb": finite_median([x["minor_faults"] / x["bytes"] * 1e6 for x in ours]),
+                     "raw_minor_faults_per_mb": finite_median([x["minor_faults"] / x["bytes"] * 1e6 for x in raw])}
     rt = {"duration_s": cfg["realtime_s"], "rate_hz": RATE_HZ, "fisheye_rate_hz": RATE_HZ / 2,
           "published": {c: realtime[c]["published"] for c in COMPRESSIONS},
           "recorded": {c: realtime[c]["recorded"] for c in COMPRESSIONS},
@@ -434,7 +422,7 @@ def run_bench(quick: bool = False) -> dict:
     lockstep = {"identical": lock[0]["digest"] == lock[1]["digest"] and lock[0]["counts"] == lock[1]["counts"]
                 and sum(lock[0]["counts"].values()) == 2 * n,
                 "digest": lock[0]["digest"], "digests": [x["digest"] for x in lock],
-                "messages": n, "ms_per_message": _median([x["ms_per_message"] for x in lock]),
+                "messages": n, "ms_per_message": finite_median([x["ms_per_message"] for x in lock]),
                 "worker_sleep_ms_mean": statistics.mean(v for x in lock for v in x["worker_sleep_ms"].values()),
                 "nonlockstep_rate": NONLOCKSTEP_RATE,
                 "nonlockstep_identical": free[0]["digest"] == free[1]["digest"],
@@ -462,7 +450,7 @@ def run_bench(quick: bool = False) -> dict:
                            "lz4": _version("lz4"), "pyzmq": zmq.__version__, "libzmq": zmq.zmq_version(),
                            "numpy": np.__version__, "platform": platform.platform()},
                   duration_s=time.monotonic() - t_start)
-    return _rounded(result)
+    return rounded(result)
 
 
 def _version(dist: str) -> str:

@@ -23,10 +23,8 @@ repetitions (5, ``--quick``: 1); ``throughput_ratio`` = ours / raw of the median
 from __future__ import annotations
 
 import json
-import math
 import os
 import platform
-import statistics
 import struct
 import subprocess
 import sys
@@ -36,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from probeless.tools.bench_common import finite_median, log, rounded
 
 GOALS = {"throughput_ratio_min": 0.8, "latency_added_p50_ms_max": 0.3}
 QUEUE_SIZE = 8
@@ -52,8 +51,6 @@ RAW_HEADER = struct.Struct("<qqB")  # seq, stamp_ns, phase (0 = throughput, 1 = 
 PHASES = ("tput", "lat")
 
 
-def log(text: str) -> None:
-    print(f"[bench] {text}", file=sys.stderr, flush=True)
 
 
 # -- ours: a real graph through the Launcher ----------------------------------------------------
@@ -90,9 +87,9 @@ def run_ours(cfg: tuple, tmp: Path, tag: str) -> dict:
 # -- raw: plain pyzmq processes -------------------------------------------------------------------
 def _raw_pub(a: dict) -> None:
     import zmq
+    from probeless.tools.bench_nodes import bench_image
 
     from probeless.runtime.transport import SEND_HWM
-    from probeless.tools.bench_nodes import bench_image
 
     ctx = zmq.Context()
     s = ctx.socket(zmq.XPUB)
@@ -244,8 +241,7 @@ def analyze(res: dict, cfg: tuple) -> dict:
 
 
 def _median(runs: list[dict], key: str) -> float:
-    vals = [r[key] for r in runs if math.isfinite(r[key])]
-    return float(statistics.median(vals)) if vals else float("nan")
+    return finite_median([r[key] for r in runs])
 
 
 def summarize_side(runs: list[dict]) -> dict:
@@ -256,14 +252,6 @@ def summarize_side(runs: list[dict]) -> dict:
     return s
 
 
-def _rounded(obj: Any) -> Any:
-    if isinstance(obj, float):
-        return round(obj, 4) if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _rounded(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_rounded(v) for v in obj]
-    return obj
 
 
 # -- main -----------------------------------------------------------------------------------------------
@@ -317,7 +305,7 @@ def run_bench(quick: bool = False, reps: int | None = None) -> dict:
                            "pyzmq": zmq.__version__, "libzmq": zmq.zmq_version(), "numpy": np.__version__,
                            "platform": platform.platform()},
                   duration_s=time.monotonic() - t_start)
-    return _rounded(result)
+    return rounded(result)
 
 
 def print_table(result: dict) -> None:

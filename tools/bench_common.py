@@ -1,0 +1,30 @@
+"""Helpers shared by the ``probeless bench`` scripts: logging to stderr, robust medians, JSON rounding."""
+
+from __future__ import annotations
+
+import math
+import statistics
+import sys
+from typing import Any
+
+
+def log(text: str) -> None:
+    """Progress line on stderr (stdout is reserved for the table or the one JSON object)."""
+    print(f"[bench] {text}", file=sys.stderr, flush=True)
+
+
+def finite_median(vals: list[float]) -> float:
+    """Median of the finite values, NaN when there are none."""
+    vals = [v for v in vals if math.isfinite(v)]
+    return float(statistics.median(vals)) if vals else float("nan")
+
+
+def rounded(obj: Any) -> Any:
+    """Floats rounded to 4 places (non-finite -> None), recursively through dicts and lists."""
+    if isinstance(obj, float):
+        return round(obj, 4) if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: rounded(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [rounded(v) for v in obj]
+    return obj
