@@ -63,6 +63,14 @@ class Context(Protocol):
     def timed(self, stage: str) -> Any:
         """Context manager timing a named stage for diagnostics."""
 
+    def publish_raw(self, output: str, frames: list) -> None:
+        """Publish recorded wire frames unchanged (for players: bit-exact replay)."""
+
+    def wait_quiescent(self) -> bool:
+        """Block until every other node is idle with nothing in flight (for lockstep players)."""
+
+    plan: dict  # the resolved launch plan of the graph (recorders store it)
+
 
 class Node:
     """Base class of every node. Override what you need; all hooks run on the node's one thread."""
