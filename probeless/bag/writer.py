@@ -6,6 +6,8 @@ channel whose schema is the JSON Schema of its message type (:mod:`probeless.bag
 
 from __future__ import annotations
 
+import os
+
 import json
 import re
 from pathlib import Path
@@ -152,6 +154,8 @@ class BagWriter:
             for meta_name, data in (extra or {}).items():
                 self._writer.add_metadata(meta_name, data)
             self._writer.finish()
+            self._file.flush()
+            os.fsync(self._file.fileno())  # a finished recording is on disk, not only in the page cache
             self._file.close()
         except OSError as exc:
             raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
