@@ -91,18 +91,23 @@ def test_record_is_complete_and_replay_is_bit_exact(tmp_path, recorded):
     assert replayed == original                                   # envelope + buffers, byte for byte
 
 
-def test_replay_rate_scales_intervals_and_nodes_follow_recorded_time(tmp_path, recorded):
-    stamps = [m.log_time_ns for m in BagReader(recorded).messages("src/image")]
-    g = write(tmp_path / "watch.yaml", f"""
+def watch_graph(tmp_path: Path, policy: str) -> Path:
+    """Ticker (replaced on replay) -> ClockWatcher writing tmp_path/watch.json."""
+    return write(tmp_path / "watch.yaml", f"""
 nodes:
   - id: src
     node: nodes_for_tests:Ticker
     inputs: {{tick: timer/hz/50}}
   - id: watch
     node: nodes_for_tests:ClockWatcher
-    inputs: {{image: {{source: src/image, policy: block}}}}
+    inputs: {{image: {{source: src/image, policy: {policy}}}}}
     params: {{out: {tmp_path / "watch.json"}}}
 """)
+
+
+def test_replay_rate_scales_intervals_and_nodes_follow_recorded_time(tmp_path, recorded):
+    stamps = [m.log_time_ns for m in BagReader(recorded).messages("src/image")]
+    g = watch_graph(tmp_path, "block")
     code, log = run(g, replay=str(recorded), lockstep=True, rate=0.0)
     assert code == 0, log
     w = json.loads((tmp_path / "watch.json").read_text())
@@ -117,16 +122,7 @@ nodes:
 
 
 def test_loop_restarts_and_resets_node_time(tmp_path, recorded):
-    g = write(tmp_path / "watch.yaml", f"""
-nodes:
-  - id: src
-    node: nodes_for_tests:Ticker
-    inputs: {{tick: timer/hz/50}}
-  - id: watch
-    node: nodes_for_tests:ClockWatcher
-    inputs: {{image: src/image}}
-    params: {{out: {tmp_path / "watch.json"}}}
-""")
+    g = watch_graph(tmp_path, "drop_oldest")
     code, log = run(g, replay=str(recorded), rate=4.0, loop=True, duration=2.5)
     assert code == 0, log
     w = json.loads((tmp_path / "watch.json").read_text())

@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from probeless.tools.bench_common import finite_median, log, rounded
+from probeless.tools.bench_common import finite_median, log, rounded, run_cli
 
 GOALS = {"record_ratio_min": 0.7, "replay_p99_ms_max": 2.0, "lockstep_identical": True, "lossless": True}
 COMPRESSIONS = ("none", "lz4")
@@ -535,10 +535,4 @@ def main(json_out: bool = False, quick: bool = False) -> int:
 
 
 if __name__ == "__main__":
-    import argparse
-
-    ap = argparse.ArgumentParser(description="recording benchmark: recorder vs raw mcap, replay timing, lockstep")
-    ap.add_argument("--json", action="store_true")
-    ap.add_argument("--quick", action="store_true")
-    ns = ap.parse_args()
-    sys.exit(main(json_out=ns.json, quick=ns.quick))
+    run_cli(main, "recording benchmark: recorder vs raw mcap, replay timing, lockstep")

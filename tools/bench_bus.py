@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from probeless.tools.bench_common import finite_median, log, rounded
+from probeless.tools.bench_common import finite_median, log, rounded, run_cli
 
 GOALS = {"throughput_ratio_min": 0.8, "latency_added_p50_ms_max": 0.3}
 QUEUE_SIZE = 8
@@ -359,10 +359,4 @@ def main(json_out: bool = False, quick: bool = False) -> int:
 
 
 if __name__ == "__main__":
-    import argparse
-
-    ap = argparse.ArgumentParser(description="bus benchmark: ours vs raw pyzmq")
-    ap.add_argument("--json", action="store_true")
-    ap.add_argument("--quick", action="store_true")
-    ns = ap.parse_args()
-    sys.exit(main(json_out=ns.json, quick=ns.quick))
+    run_cli(main, "bus benchmark: ours vs raw pyzmq")

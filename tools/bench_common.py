@@ -28,3 +28,14 @@ def rounded(obj: Any) -> Any:
     if isinstance(obj, list):
         return [rounded(v) for v in obj]
     return obj
+
+
+def run_cli(main, description: str) -> None:
+    """``python -m probeless.tools.bench_X [--json] [--quick]``: parse, run ``main``, exit with its code."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--quick", action="store_true", help="short run (smoke test)")
+    ns = ap.parse_args()
+    sys.exit(main(json_out=ns.json, quick=ns.quick))

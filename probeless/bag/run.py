@@ -12,9 +12,9 @@ from probeless.bag.compare import compare_recordings
 from probeless.bag.reader import BagReader
 from probeless.bag.schema import check_schemas
 from probeless.errors import BagError
-from probeless.launch.graph import Graph, NodeDecl
+from probeless.launch.graph import Graph
 from probeless.launch.launcher import Launcher, load_checked
-from probeless.launch.replay import PLAYER_ID, add_player, add_recorder
+from probeless.launch.replay import PLAYER_ID, add_player, add_player_node, add_recorder
 from probeless.launch.validate import validate
 from probeless.nodes.bag.player import parse_remaps
 
@@ -99,12 +99,9 @@ def cmd_play(ns: argparse.Namespace) -> int:
     unknown = [t for t in chosen if t not in types]
     if unknown:
         raise BagError(f"{ns.bag}: no topic(s) {unknown} in the recording (has: {sorted(types)})")
-    played = [remap.get(t, t) for t in chosen]
     params = {"path": ns.bag, "topics": chosen, "remap": list(ns.remap), **_player_params(ns)}
     graph = Graph(file=ns.bag)
-    graph.nodes[PLAYER_ID] = NodeDecl(PLAYER_ID, "bag_player", ns.bag, 0, outputs=played, params=params,
-                                      topics={t: t for t in played},
-                                      output_types={remap.get(t, t): types[t] for t in chosen})
+    add_player_node(graph, params, {remap.get(t, t): types[t] for t in chosen})
     errors = validate(graph)
     if errors:
         raise errors[0]

@@ -89,6 +89,7 @@ class Graph:
     hosts: dict[str, dict] = field(default_factory=dict)
     args: dict[str, Any] = field(default_factory=dict)
     errors: list[GraphError] = field(default_factory=list)
+    node_classes: dict[str, type] = field(default_factory=dict)  # node id -> Node class, filled by validate()
 
 
 def parse_graph(path: str | Path, overrides: dict[str, Any] | None = None) -> Graph:

@@ -94,11 +94,16 @@ def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: lis
         graph.node_classes.pop(node_id, None)
     player_params = {"path": bag, "topics": sorted(set(needed.values())),
                      "remap": [f"{a}:={b}" for a, b in sorted(remap.items())], **(params or {})}
-    graph.nodes[PLAYER_ID] = NodeDecl(PLAYER_ID, "bag_player", graph.file, 0, outputs=sorted(needed),
-                                      params=player_params, topics={t: t for t in needed},
-                                      output_types={t: played[t][1] for t in needed})
-    graph.node_classes[PLAYER_ID] = resolve_node("bag_player")
+    add_player_node(graph, player_params, {t: played[t][1] for t in needed})
     return list(replace)
+
+
+def add_player_node(graph: Graph, params: dict, topic_types: dict[str, str]) -> None:
+    """Add the ``bag_player`` node publishing ``topic_types`` (played topic -> type name) under those names."""
+    graph.nodes[PLAYER_ID] = NodeDecl(PLAYER_ID, "bag_player", graph.file, 0, outputs=sorted(topic_types),
+                                      params=params, topics={t: t for t in topic_types},
+                                      output_types=dict(topic_types))
+    graph.node_classes[PLAYER_ID] = resolve_node("bag_player")
 
 
 def _check_type(graph: Graph, decl: NodeDecl, inp: InputDecl, topic: str, type_name: str, bag: str) -> None:
