@@ -115,8 +115,11 @@ def test_replay_rate_scales_intervals_and_nodes_follow_recorded_time(tmp_path, r
     code, log = run(g, replay=str(recorded), rate=2.0)
     assert code == 0, log
     w = json.loads((tmp_path / "watch.json").read_text())
-    lag_ms = (np.array(stamps) - np.array(w["now"])) / 1e6        # real time: the clock may trail by a tick
-    assert w["simulated"] and (lag_ms >= 0).all() and (lag_ms <= 40).all()
+    now = np.array(w["now"])
+    lag_ms = (np.array(stamps) - now) / 1e6                       # real time: clock and data race by a tick
+    assert w["simulated"] and (np.diff(now) >= 0).all()           # recorded time never runs backwards
+    assert stamps[0] - 50e6 <= now.min() and now.max() <= stamps[-1] + 50e6
+    assert np.median(np.abs(lag_ms)) <= 20
     wall = np.diff(w["recv_wall"]) / 1e6
     assert np.median(wall) == pytest.approx(np.median(np.diff(stamps)) / 1e6 / 2, rel=0.3)  # twice as fast
 
