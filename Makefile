@@ -5,8 +5,11 @@ setup:
 	@bash tools/setup.sh
 
 demo: setup
-	.venv/bin/probeless launch launch/demo_runtime.yaml
-	.venv/bin/probeless graph launch/demo_runtime.yaml --out out/demo/graph.png
+	.venv/bin/probeless scene preview launch/scenes/l_shaped_lounge.yaml --t 2.0 -o out/demo/scene_preview.png
+	.venv/bin/probeless launch launch/synthetic_rig.yaml out_dir:=out/demo/rig
+	.venv/bin/probeless scene render launch/scenes/l_shaped_lounge.yaml --duration 2 -o out/demo/lounge_2s.mcap --force
+	.venv/bin/probeless bag info out/demo/lounge_2s.mcap
+	.venv/bin/probeless graph launch/synthetic_rig.yaml --out out/demo/graph.png
 
 test: setup
 	.venv/bin/python -m pytest -q

@@ -11,6 +11,12 @@ BUILTIN: dict[str, str] = {
     "summary_sink": "probeless.nodes.demo.summary:SummarySink",
     "bag_recorder": "probeless.nodes.bag.recorder:BagRecorder",
     "bag_player": "probeless.nodes.bag.player:BagPlayer",
+    "rgbd_dataset": "probeless.nodes.sensors.rgbd_dataset:RgbdDatasetPlayer",
+    "fisheye_player": "probeless.nodes.sensors.fisheye_player:FisheyePlayer",
+    "opencv_camera": "probeless.nodes.sensors.opencv_camera:OpenCvCamera",
+    "realsense": "probeless.nodes.sensors.realsense:RealSenseCamera",
+    "fisheye_undistort": "probeless.nodes.sensors.undistort:FisheyeUndistort",
+    "synthetic_rig": "probeless.nodes.sensors.synthetic_rig:SyntheticRig",
     "bench_source": "probeless.tools.bench_nodes:BenchSource",
     "bench_sink": "probeless.tools.bench_nodes:BenchSink",
 }

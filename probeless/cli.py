@@ -81,6 +81,10 @@ def cmd_bench(ns: argparse.Namespace) -> int:
         from probeless.tools.bench_bag import main as bench_bag
 
         return bench_bag(json_out=ns.json, quick=ns.quick)
+    if ns.what == "sensors":
+        from probeless.tools.bench_sensors import main as bench_sensors
+
+        return bench_sensors(json_out=ns.json, quick=ns.quick)
     raise ProbelessError(f"unknown benchmark {ns.what!r}")
 
 
@@ -152,6 +156,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_topic_parser(sub)
 
+    from probeless.scene.cli import add_scene_parser
+
+    add_scene_parser(sub)
+
+    from probeless.datasets.cli import add_dataset_parser
+
+    add_dataset_parser(sub)
+
     c = sub.add_parser("graph", help="draw a launch graph: nodes, topics, message types")
     c.add_argument("graph")
     c.add_argument("args", nargs="*", metavar="name:=value")
@@ -160,7 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_graph)
 
     c = sub.add_parser("bench", help="run a benchmark and print its figures")
-    c.add_argument("what", choices=("bus", "bag"))
+    c.add_argument("what", choices=("bus", "bag", "sensors"))
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.add_argument("--quick", action="store_true", help="fewer messages (for smoke tests)")
     c.set_defaults(func=cmd_bench)

@@ -60,3 +60,19 @@ class TransportError(ProbelessError):
 
 class BagError(ProbelessError):
     """A recording cannot be read or written (not MCAP, corrupt, truncated, would overwrite, ...)."""
+
+
+class SceneError(ProbelessError):
+    """A synthetic scene file is invalid; the message names the file and the key at fault."""
+
+
+class CalibrationError(ProbelessError):
+    """A camera calibration file or calibration run is invalid or failed."""
+
+
+class DatasetError(ProbelessError):
+    """A dataset folder, image or video file is missing, malformed or of an unknown format."""
+
+
+class DeviceError(ProbelessError):
+    """A live camera could not be opened or stopped delivering frames."""

@@ -1,0 +1,1 @@
+"""Sensor nodes: synthetic rig, dataset players, live camera drivers, fisheye undistortion."""

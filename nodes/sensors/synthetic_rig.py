@@ -1,0 +1,109 @@
+"""Synthetic rig node: renders a scene file's RGB-D and fisheye cameras and ground truth (see probeless.scene.rig)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from probeless.messages.geometry import Floorplan, PoseStamped
+from probeless.messages.lighting import Cubemap
+from probeless.messages.sensor import CameraInfo, DepthImage, Image
+from probeless.runtime import Node, param
+from probeless.scene.parse import load_scene
+from probeless.scene.rig import Rig, frame_schedule
+
+PRECISE_SLEEP_S = 0.003
+
+
+class SyntheticRig(Node):
+    """Publishes each frame when its scene time is due (scaled by ``rate``); ``rate: 0`` = lockstep.
+
+    When rendering is slower than real time the schedule shifts (both cameras slow down together,
+    frames are never dropped or reordered). With ``loop`` the sequence restarts and stamps keep
+    increasing (each pass is offset by the sequence length plus one RGB-D frame period).
+    """
+
+    OUTPUTS = {
+        "rgb": Image, "depth": DepthImage, "fisheye": Image, "floorplan": Floorplan,
+        "rgbd/camera_info": CameraInfo, "fisheye/camera_info": CameraInfo,
+        "gt/rgbd_pose": PoseStamped, "gt/fisheye_pose": PoseStamped,
+        "gt/envmap/*": Cubemap, "gt/envmap_ldr/*": Cubemap,
+    }
+
+    @dataclass(frozen=True)
+    class Params:
+        scene: str = param(doc="scene file (.yaml); use $(dirname) for paths relative to the graph")
+        rate: float = param(1.0, min=0.0, max=100.0, doc="speed factor against scene time; 0 = lockstep, as fast as the graph consumes")
+        duration_s: float = param(0.0, min=0.0, doc="render this much scene time [s]; 0 = the whole trajectory")
+        loop: bool = param(False, doc="start again at the end")
+        envmaps: bool = param(True, doc="publish ground-truth cubemaps for every virtual object and fisheye frame")
+        envmap_size: int = param(64, min=4, max=2048, doc="ground-truth cubemap face size [texels]")
+        fisheye_cube_size: int = param(512, min=16, max=4096, doc="cubemap resolution behind the fisheye image [texels]")
+        seed: int = param(0, min=0, doc="depth-noise seed")
+        stamps: str = param("scene", choices=("scene", "wall"),
+                            doc="scene = scene time from 0 (reproducible); wall = the node clock when the frame is rendered, like a live camera's host stamps")
+        max_lag_s: float = param(0.05, min=0.0, doc="lag beyond which the schedule shifts [s]")
+
+    def setup(self) -> None:
+        p = self.params
+        self.scene = load_scene(p.scene)
+        self.rig = Rig(self.scene, envmap_size=p.envmap_size, fisheye_cube_size=p.fisheye_cube_size,
+                       seed=p.seed, envmaps=p.envmaps)
+        self.events = frame_schedule(self.scene, p.duration_s or None)
+        self.period_s = (p.duration_s or self.scene.duration) + 1.0 / self.scene.rgbd.fps
+        self.lockstep = p.rate == 0
+        self.passes, self.next, self.t0 = 0, 0, None
+        origin_ns = self.ctx.now_ns() if p.stamps == "wall" else 0
+        self.ctx.publish("floorplan", _shifted(self.rig.floorplan(), origin_ns))
+        self.timer = self.ctx.create_timer(0.002, self._step, name="render")
+
+    def _step(self) -> None:
+        if self.next >= len(self.events):
+            self._at_end()
+            return
+        event = self.events[self.next]
+        offset_s = self.passes * self.period_s
+        if not self.lockstep:
+            now = time.monotonic()
+            if self.t0 is None:
+                self.t0 = now - (offset_s + event.t) / self.params.rate
+            due = self.t0 + (offset_s + event.t) / self.params.rate
+            if due - now > PRECISE_SLEEP_S:
+                return
+            if due > now:
+                time.sleep(due - now)
+        capture_ns = self.ctx.now_ns()
+        with self.ctx.timed("render"):
+            messages = list(self.rig.messages(event))
+        if self.params.stamps == "wall":
+            offset_ns = capture_ns - event.stamp_ns
+        else:
+            offset_ns = int(round(offset_s * 1e9))
+        for output, msg in messages:
+            self.ctx.publish(output, _shifted(msg, offset_ns) if offset_ns else msg)
+        self.next += 1
+        if self.lockstep:
+            self.ctx.wait_quiescent()
+        elif time.monotonic() - due > self.params.max_lag_s:
+            self.t0 += time.monotonic() - due  # fell behind: both cameras slow down together
+
+    def _at_end(self) -> None:
+        if not self.params.loop:
+            self.timer.cancel()
+            self.ctx.log.info("rendered %d frame(s) of %s", len(self.events), self.scene.name)
+            self.ctx.stop()
+            return
+        self.passes += 1
+        self.next = 0
+
+    def close(self) -> None:
+        if getattr(self, "rig", None) is not None:
+            self.rig.release()
+
+
+def _shifted(msg, offset_ns: int):
+    """The message with its header stamp moved by ``offset_ns`` (for looped passes)."""
+    import dataclasses
+
+    header = dataclasses.replace(msg.header, stamp_ns=msg.header.stamp_ns + offset_ns)
+    return dataclasses.replace(msg, header=header)
