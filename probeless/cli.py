@@ -160,6 +160,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_scene_parser(sub)
 
+    from probeless.cameras.calibrate_cli import add_calibrate_parser
+
+    add_calibrate_parser(sub)
+
     from probeless.datasets.cli import add_dataset_parser
 
     add_dataset_parser(sub)
