@@ -163,17 +163,8 @@ def test_opencv_camera_node_on_a_video_file(video):
 
 
 def test_opencv_camera_realtime_pacing(video):
-    class Timed(RecordingContext):
-        def __init__(self, *a):
-            super().__init__(*a)
-            self.times: list[float] = []
-
-        def publish(self, output, msg):
-            super().publish(output, msg)
-            self.times.append(time.monotonic())
-
-    ctx = run_source(OpenCvCamera, {"device": str(video)}, Timed("src", OpenCvCamera))
-    t = np.array(ctx.times) - ctx.node.thread.pace_origin
+    ctx = run_source(OpenCvCamera, {"device": str(video)}, RecordingContext("src", OpenCvCamera))
+    t = np.array(ctx.times()) - ctx.node.thread.pace_origin
     expected = np.arange(12) / 30
     assert len(t) == 12
     assert np.all(t >= expected - 0.001), t  # never early (lateness only from CPU load)

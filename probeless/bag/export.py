@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import base64
-import contextlib
 import json
 import shutil
 from dataclasses import dataclass, field
@@ -26,6 +25,7 @@ import numpy as np
 from probeless.bag.reader import BagMessage, BagReader
 from probeless.bag.writer import recording_paths
 from probeless.errors import BagError
+from probeless.progress import progress as progress_bar
 
 FORMATS = ("foxglove", "png-dir")
 
@@ -176,20 +176,6 @@ SCHEMAS: dict[str, dict[str, Any]] = {
 # -- driving -------------------------------------------------------------------------------------
 
 
-@contextlib.contextmanager
-def _progress(total: int, label: str, enabled: bool) -> Iterator[Callable[[], None]]:
-    if not enabled:
-        yield lambda: None
-        return
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
-                  console=Console(stderr=True)) as bar:
-        task = bar.add_task(label, total=total)
-        yield lambda: bar.advance(task)
-
-
 def _messages(sources: Sequence[Path], topics: Sequence[str] | None,
               summary: ExportSummary) -> tuple[list[BagReader], int]:
     readers = []
@@ -228,7 +214,7 @@ def export_foxglove(src: str | Path | Sequence[str | Path], out: str | Path, *, 
     summary = ExportSummary()
     readers, total = _messages(sources, topics, summary)
     try:
-        with open(out, "wb") as f, _progress(total, f"export {out.name}", progress) as tick:
+        with open(out, "wb") as f, progress_bar(total, f"export {out.name}", progress) as tick:
             writer = Writer(f, compression=CompressionType.ZSTD)
             writer.start(profile="", library="probeless bag export")
             schema_ids: dict[str, int] = {}
@@ -296,7 +282,7 @@ def export_png_dir(src: str | Path | Sequence[str | Path], out_dir: str | Path, 
     readers, total = _messages(sources, topics, summary)
     csvs: dict[str, Any] = {}
     try:
-        with _progress(total, f"export {out_dir.name}/", progress) as tick:
+        with progress_bar(total, f"export {out_dir.name}/", progress) as tick:
             for r, m in _iter(readers, topics, tick):
                 if m.type_name not in ("sensor/Image", "sensor/DepthImage"):
                     summary.skipped[m.topic] = summary.skipped.get(m.topic, 0) + 1

@@ -6,16 +6,15 @@ Errors are raised as CalibrationError (or BagError) and printed by probeless.cli
 from __future__ import annotations
 
 import argparse
-import contextlib
 import glob
 import re
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from probeless.errors import CalibrationError
+from probeless.progress import progress as progress_bar
 
 
 def add_calibrate_parser(sub: Any) -> argparse.ArgumentParser:
@@ -70,20 +69,6 @@ def add_calibrate_parser(sub: Any) -> argparse.ArgumentParser:
     return p
 
 
-@contextlib.contextmanager
-def _progress(total: int, label: str, enabled: bool) -> Iterator[Callable[[], None]]:
-    if not enabled:
-        yield lambda: None
-        return
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
-                  console=Console(stderr=True), transient=True) as bar:
-        task = bar.add_task(label, total=total)
-        yield lambda: bar.advance(task)
-
-
 def _check_output(path: str, force: bool) -> Path:
     out = Path(path)
     if out.exists() and not force:
@@ -114,7 +99,7 @@ def cmd_fisheye(ns: argparse.Namespace) -> int:
     paths = sorted(glob.glob(ns.images), key=_natural_key)
     if not paths:
         raise CalibrationError(f"--images {ns.images!r} matches no file")
-    with _progress(len(paths), "detecting corners", not ns.no_progress) as tick:
+    with progress_bar(len(paths), "detecting corners", not ns.no_progress, transient=True) as tick:
         detections = detect_images(paths, inner, on_image=lambda d: tick())
     result = calibrate_fisheye(detections, ns.square, ns.model, ns.frame_id)
     for d in detections:
@@ -202,7 +187,7 @@ def _pool_matches(pairs, rgbd_info, fisheye_info, init, compensate: bool, progre
 
     fisheye = model_from_info(fisheye_info)
     points, pixels, used = [np.zeros((0, 3))], [np.zeros((0, 2))], 0
-    with _progress(len(pairs), "matching", progress) as tick:
+    with progress_bar(len(pairs), "matching", progress, transient=True) as tick:
         for pair in pairs:
             _check_sizes(pair, rgbd_info, fisheye_info)
             where = f"  pair fisheye {pair.fisheye_stamp_ns} / rgbd {pair.rgb_stamp_ns} (dt {pair.dt_s * 1e3:+.1f} ms)"

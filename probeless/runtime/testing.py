@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import time
 from typing import Any, Callable, Iterable
 
 from probeless.messages.base import Message
@@ -26,6 +27,7 @@ class RecordingContext:
         self.plan: dict = {}
         self.simulated_time = False
         self.raw_published: list[tuple[str, list]] = []
+        self.publish_times: list[tuple[str, float]] = []  # (output, time.monotonic()) of every publish
 
     def publish(self, output: str, msg: Message) -> None:
         if self.node_cls is not None and not output_type(self.node_cls, output)[0]:
@@ -33,6 +35,7 @@ class RecordingContext:
         if not isinstance(msg, Message):
             raise TypeError(f"publish({output!r}): {type(msg).__name__} is not a Message")
         self.published.append((output, msg))
+        self.publish_times.append((output, time.monotonic()))
 
     def publish_raw(self, output: str, frames: list) -> None:
         self.raw_published.append((output, list(frames)))
@@ -59,6 +62,10 @@ class RecordingContext:
     def outputs(self, name: str) -> list[Message]:
         """Messages published on output ``name``, in order."""
         return [m for o, m in self.published if o == name]
+
+    def times(self, name: str | None = None) -> list[float]:
+        """``time.monotonic()`` of each publish on output ``name`` (all outputs when None)."""
+        return [t for o, t in self.publish_times if name is None or o == name]
 
 
 def run_node(node_cls: type[Node], inputs: Iterable[tuple[str, Message]], params: dict[str, Any] | None = None,

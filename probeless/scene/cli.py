@@ -10,6 +10,7 @@ from pathlib import Path
 
 from probeless import __version__
 from probeless.errors import SceneError
+from probeless.progress import progress as progress_bar
 
 
 def add_scene_parser(sub) -> None:
@@ -55,8 +56,6 @@ def cmd_check(ns: argparse.Namespace) -> int:
 
 
 def cmd_render(ns: argparse.Namespace) -> int:
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
     from probeless.bag.writer import BagWriter
     from probeless.nodes.bag.recorder import git_revision
     from probeless.scene.parse import load_scene
@@ -77,11 +76,8 @@ def cmd_render(ns: argparse.Namespace) -> int:
     rig = Rig(scene, envmap_size=ns.envmap_size, envmaps=not ns.no_envmaps)
     seqs: dict[str, int] = defaultdict(int)
     t0 = time.monotonic()
-    columns = (TextColumn("[progress.description]{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TimeRemainingColumn())
     with BagWriter(ns.output, compression=ns.compression, force=ns.force, metadata=meta) as writer, \
-            Progress(*columns, transient=False) as progress:
-        task = progress.add_task(f"rendering {scene.name}", total=len(events))
+            progress_bar(len(events), f"rendering {scene.name}") as tick:
         writer.write_frames(encode(f"{ns.id}/floorplan", rig.floorplan(), ns.id, 0, seq=0), log_time_ns=0)
         for event in events:
             for output, msg in rig.messages(event):
@@ -89,7 +85,7 @@ def cmd_render(ns: argparse.Namespace) -> int:
                 writer.write_frames(encode(topic, msg, ns.id, event.stamp_ns, seq=seqs[topic]),
                                     log_time_ns=event.stamp_ns)
                 seqs[topic] += 1
-            progress.advance(task)
+            tick()
     rig.release()
     elapsed = time.monotonic() - t0
     print(f"wrote {ns.output}: {len(events)} frames, {sum(seqs.values()) + 1} messages in {elapsed:.1f} s")
