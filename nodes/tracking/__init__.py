@@ -1,0 +1,1 @@
+"""Tracking nodes: dense SLAM and the fisheye pose from interpolated RGB-D poses."""

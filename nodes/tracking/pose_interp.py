@@ -1,0 +1,168 @@
+"""Pose interpolation node: the fisheye pose at each fisheye frame's stamp from the RGB-D poses (paper §4.3).
+
+The cameras are not synchronised. For each fisheye frame the RGB-D pose at its stamp is
+interpolated between the bracketing RGB-D poses or, when the frame is newer than the last pose
+(the live case, "the two most recent RGB-D poses"), extrapolated from the last two at most
+``max_extrapolation_s`` ahead; then ``world_from_fisheye = world_from_rgbd(t) @ inv(fisheye_from_rgbd)``.
+A frame that can be neither waits in a small hold queue for a newer pose; it is dropped when a
+fisheye frame more than ``max_hold_s`` newer has arrived (``hold_expired``), when more than
+``hold_frames`` wait (``hold_overflow``), or at the end (``unresolved_at_close``) - each with a last
+try at extrapolation. With ``wait_for_bracket`` every frame newer than the last pose waits for the
+next pose (exact interpolation, up to one RGB-D period of latency).
+
+Outputs, only for frames that got a pose: ``fisheye_pose`` (stamped exactly like the frame, frame
+id = the poses' frame, child = the image's frame id) then ``fisheye`` (the frame, unchanged).
+Counters for every outcome (published by reason, dropped by reason, pose insert outcomes) are in
+``self.counts`` and logged at close.
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections import Counter, deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from probeless.errors import ParamError
+from probeless.messages.geometry import PoseStamped, invert_transform
+from probeless.messages.header import Header
+from probeless.messages.sensor import Image
+from probeless.runtime import Node, param
+from probeless.tracking.interp import PoseBuffer, transform_from_rpy
+
+
+def fisheye_from_rgbd(translation, rpy_deg, node_id: str = "") -> np.ndarray:
+    """4x4 fisheye_from_rgbd from the scene-file convention: p_fisheye = R p_rgbd + t, R from roll/pitch/yaw."""
+    for key, value in (("translation", translation), ("rpy_deg", rpy_deg)):
+        if len(value) != 3:
+            raise ParamError(f"needs 3 numbers, got {len(value)}", node_id=node_id, key=key)
+    return transform_from_rpy(translation, rpy_deg)
+
+
+def _ns(seconds: float) -> int:
+    return int(round(seconds * 1e9))
+
+
+class PoseInterp(Node):
+    """RGB-D ``pose`` + ``fisheye`` frames -> ``fisheye_pose`` + ``fisheye`` pairs with identical stamps."""
+
+    INPUTS = {"pose": PoseStamped, "fisheye": Image, "fisheye_from_rgbd": PoseStamped}
+    OUTPUTS = {"fisheye_pose": PoseStamped, "fisheye": Image}
+
+    @dataclass(frozen=True)
+    class Params:
+        translation: tuple[float, ...] = param(doc="fisheye_from_rgbd translation t (p_fisheye = R p_rgbd + t) [m]; "
+                                                   "the fisheye_from_rgbd input (target_from_source) overrides it")
+        rpy_deg: tuple[float, ...] = param(doc="fisheye_from_rgbd rotation R = Rz(yaw) Ry(pitch) Rx(roll) [deg]")
+        max_extrapolation_s: float = param(0.05, min=0.0, max=10.0, doc="how far beyond the newest (or oldest) "
+                                                                        "pose a pose may be extrapolated [s]")
+        wait_for_bracket: bool = param(False, doc="hold frames newer than the last pose until the next pose "
+                                                  "arrives (interpolate, do not extrapolate)")
+        max_hold_s: float = param(0.2, min=0.0, max=60.0, doc="drop a held frame once a fisheye frame this much "
+                                                              "newer has arrived [s, stamp time]")
+        hold_frames: int = param(8, min=0, max=10000, doc="most frames waiting for a newer pose; 0 = never wait")
+        buffer_length: int = param(64, min=2, max=100000, doc="RGB-D poses kept [count]")
+        max_gap_s: float = param(0.25, min=0.0, max=60.0, doc="never use two poses further apart (lost tracking) [s]")
+        jump_back_s: float = param(1.0, min=0.0, max=3600.0, doc="a stamp this much older than the newest is a "
+                                                                 "time jump (replay loop): forget the past [s]")
+
+    def setup(self) -> None:
+        p = self.params
+        self.rgbd_from_fisheye = invert_transform(fisheye_from_rgbd(p.translation, p.rpy_deg, self.ctx.node_id))
+        self.poses = PoseBuffer(p.buffer_length, _ns(p.jump_back_s), _ns(p.max_gap_s))
+        self.max_extrap_ns, self.max_hold_ns, self.jump_ns = _ns(p.max_extrapolation_s), _ns(p.max_hold_s), _ns(p.jump_back_s)
+        self.held: list[Image] = []                    # sorted by stamp
+        self.recent: deque[int] = deque(maxlen=p.hold_frames + 64)  # fisheye stamps seen, for duplicates
+        self.newest_fisheye: int | None = None
+        self.world_frame = "world"
+        self.counts: Counter[str] = Counter()
+
+    def on_input(self, name: str, msg) -> None:
+        if name == "pose":
+            self._on_pose(msg)
+        elif name == "fisheye":
+            self._on_fisheye(msg)
+        else:
+            self.rgbd_from_fisheye = invert_transform(msg.target_from_source)
+            self.counts["extrinsics_updates"] += 1
+            self.ctx.log.info("fisheye_from_rgbd from the input (stamp %d): translation %s", msg.header.stamp_ns,
+                              np.round(msg.translation, 4).tolist())
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        t = msg.header.stamp_ns
+        outcome = self.poses.insert(t, msg.target_from_source)
+        self.counts[f"pose:{outcome}"] += 1
+        self.world_frame = msg.header.frame_id or "world"
+        if outcome == "time_jump":  # frames held from the previous pass can never get a pose now
+            self._drop_held(lambda s: s - t > self.jump_ns, "time_jump")
+        self._release()
+
+    def _on_fisheye(self, img: Image) -> None:
+        t = img.header.stamp_ns
+        if self.newest_fisheye is not None and self.newest_fisheye - t > self.jump_ns:
+            self._drop_held(lambda s: s - t > self.jump_ns, "time_jump")
+            self.recent.clear()
+            self.newest_fisheye = None
+        if t in self.recent:
+            self.counts["drop:duplicate_stamp"] += 1
+            return
+        self.recent.append(t)
+        self.newest_fisheye = t if self.newest_fisheye is None else max(self.newest_fisheye, t)
+        bisect.insort(self.held, img, key=lambda m: m.header.stamp_ns)
+        self._release()
+
+    def _release(self) -> None:
+        """Publish or drop every held frame that can be decided now; cap the queue."""
+        kept = []
+        for img in self.held:
+            expired = self.newest_fisheye - img.header.stamp_ns > self.max_hold_ns
+            if not self._resolve(img, "hold_expired" if expired else None):
+                kept.append(img)
+        while len(kept) > self.params.hold_frames:
+            self._resolve(kept.pop(0), "hold_overflow")
+        self.held = kept
+
+    def _waiting(self, t: int) -> bool:
+        """True while a newer pose may still bracket stamp ``t`` (or the poses are from before a time jump)."""
+        newest = self.poses.newest_ns
+        return newest is None or t > newest or newest - t > self.jump_ns
+
+    def _resolve(self, img: Image, final: str | None) -> bool:
+        """Publish ``img`` with its pose or drop it (True), or keep holding it (False).
+
+        ``final`` names why this is the frame's last chance; then it is extrapolated if it can be.
+        """
+        t = img.header.stamp_ns
+        waiting = self._waiting(t)
+        extrap = self.max_extrap_ns if final or not (self.params.wait_for_bracket and waiting) else 0
+        with self.ctx.timed("interpolate"):
+            T, reason = self.poses.query(t, extrap)
+        if T is not None:
+            pose = PoseStamped(Header(t, self.world_frame), img.header.frame_id or "fisheye", T @ self.rgbd_from_fisheye)
+            self.ctx.publish("fisheye_pose", pose)
+            self.ctx.publish("fisheye", img)
+            self.counts[f"published:{reason}"] += 1
+            return True
+        if waiting and final is None:
+            return False
+        self.counts[f"drop:{final if waiting else reason}"] += 1
+        return True
+
+    def _drop_held(self, stale, reason: str) -> None:
+        keep = [m for m in self.held if not stale(m.header.stamp_ns)]
+        if len(keep) < len(self.held):
+            self.counts[f"drop:{reason}"] += len(self.held) - len(keep)
+        self.held = keep
+
+    def close(self) -> None:
+        for img in getattr(self, "held", []):
+            self._resolve(img, "unresolved_at_close")
+        if not hasattr(self, "counts"):
+            return
+        self.held = []
+        published = sum(n for k, n in self.counts.items() if k.startswith("published:"))
+        dropped = {k[5:]: n for k, n in self.counts.items() if k.startswith("drop:")}
+        self.ctx.log.info("%d fisheye pose(s) published; counts: %s", published, dict(sorted(self.counts.items())))
+        if dropped:
+            self.ctx.log.warning("dropped %d fisheye frame(s): %s", sum(dropped.values()), dropped)

@@ -1,0 +1,1 @@
+"""Camera tracking: dense SLAM poses, pose interpolation in time and their evaluation."""
