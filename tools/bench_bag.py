@@ -15,9 +15,23 @@ Three measurements, every graph run through the real :class:`~probeless.launch.l
      message received): the recorder's whole job, queue drain and summary included, start-up not.
      Side by side in the same run (alternating order), a raw ``mcap.writer.Writer`` in this process
      writes the same messages (same payload bytes: the msgpack-framed wire frames, same chunk size,
-     compression and CRCs) as fast as it can. ``record_ratio`` = ours / raw (median of reps).
+     compression and CRCs) as fast as it can, to a file written the way the recorder writes its own
+     (:class:`~probeless.bag.directio.AppendFile`: page cache bypassed with ``O_DIRECT`` where the
+     file system allows, ``raw_direct_io`` in the figures), so the ratio measures the recorder, not
+     a difference in file I/O. ``record_ratio`` = ours / raw (median of reps).
      CPU (user + sys) and minor page faults per payload byte are reported for both sides (ours: every
      node process, start-up and frame generation included; raw: this process during the write).
+
+     *Cold memory.* Both sides wait ``COLD_MEMORY_S`` after the previous run's file was deleted
+     before they write. On a VM with free page reporting (virtio-balloon, as on the machines this
+     runs on) memory the guest freed more than ~2 s ago has been handed back to the host, and every
+     page taken from it then costs a host page fault: writing 1.6 GB through the page cache
+     measured 0.35-0.5 s of system time right after deleting a 1.6 GB file, 1.6-2.3 s after a 3 s
+     pause. The recorder cannot start writing sooner than ~2 s after launch (node start-up), so
+     without the pause a raw writer starting at once wrote into the previous file's still-warm
+     pages and looked up to 4x cheaper per byte for reasons unrelated to either writer. This
+     matters where files go through the page cache (no ``O_DIRECT``); on bare metal the pause
+     changes nothing.
 
 2. **Replay timing.** ``TimingSource`` publishes 600 320x240 images at random 5-30 ms intervals
    (``--quick``: 100); the recording is replayed by ``bag_player`` (``add_player``) to a raw
@@ -61,6 +75,9 @@ FULL = {"realtime_s": 20.0, "maxrate_ticks": 600, "reps": 3, "timing_messages": 
 QUICK = {"realtime_s": 3.0, "maxrate_ticks": 30, "reps": 1, "timing_messages": 100}
 WORKER_MAX_SLEEP_MS = 2.0
 NONLOCKSTEP_RATE = 4.0
+# Seconds both sides of the max-rate comparison wait, after the previous run's file was deleted,
+# before they write (see "Cold memory" in the module docstring).
+COLD_MEMORY_S = 3.0
 
 
 
@@ -133,6 +150,8 @@ def run_ours_record(tmp: Path, compression: str, ticks: int, max_rate: bool, tag
     add_recorder(graph, str(bag), topics=list(CAMERA_TOPICS),
                  params={"compression": compression, "command": "probeless bench bag"})
     os.sync()  # start from a clean page cache: no run pays for the previous run's writeback
+    if max_rate:
+        time.sleep(COLD_MEMORY_S)  # the same cold memory as the raw writer's (module docstring)
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     try:
         wall = _launch(graph, f"record ({compression}, {tag})")
@@ -177,6 +196,22 @@ def _raw_payloads(ticks: int) -> tuple[list[tuple[str, bytes]], dict]:
     return out, {t: (type(m).TYPE_NAME, type(m).VERSION, type(m)) for t, m in types.items()}
 
 
+class _AppendStream:
+    """The write/tell stream mcap's Writer needs, appending through the recorder's own file output
+    (:class:`~probeless.bag.directio.AppendFile`: page cache bypassed where the file system allows)."""
+
+    def __init__(self, fd: int):
+        from probeless.bag.directio import AppendFile
+
+        self.out = AppendFile(fd)
+
+    def write(self, data) -> int:
+        return self.out.write([data])
+
+    def tell(self) -> int:
+        return self.out.pos
+
+
 def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]], types: dict, tag: str) -> dict:
     """The same messages through a bare mcap Writer, as fast as possible, in this process."""
     from mcap.writer import CompressionType, Writer
@@ -190,11 +225,13 @@ def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]
     path = tmp / f"raw-{tag}.mcap"
     seq: dict[str, int] = {}
     os.sync()  # start from a clean page cache, like the recorder's runs
+    time.sleep(COLD_MEMORY_S)  # and from memory as cold as the recorder's (module docstring)
     try:
         ru0 = resource.getrusage(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
-        with open(path, "xb") as f:
-            w = Writer(f, chunk_size=chunk_size, compression=ctype, enable_crcs=True)
+        with open(path, "xb", buffering=0) as f:
+            stream = _AppendStream(f.fileno())
+            w = Writer(stream, chunk_size=chunk_size, compression=ctype, enable_crcs=True)
             w.start(profile=PROFILE, library="raw")
             channels, schemas = {}, {}
             for topic, payload in payloads:
@@ -212,7 +249,8 @@ def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]
                 w.add_message(cid, log_time=now, data=payload, publish_time=now, sequence=s)
                 seq[topic] = s + 1
             w.finish()
-            f.flush()
+            direct = stream.out.direct
+            stream.out.close()
             os.fsync(f.fileno())  # timed to the same point as the recorder: data on disk
         span = time.perf_counter() - t0
         ru = resource.getrusage(resource.RUSAGE_SELF)
@@ -222,7 +260,8 @@ def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]
     nbytes = sum(len(p) for _, p in payloads)
     return {"bytes": nbytes, "file_bytes": size, "record_s": span, "mb_per_s": nbytes / 1e6 / span,
             "messages": len(payloads), "cpu_s": (ru.ru_utime - ru0.ru_utime) + (ru.ru_stime - ru0.ru_stime),
-            "sys_s": ru.ru_stime - ru0.ru_stime, "minor_faults": ru.ru_minflt - ru0.ru_minflt}
+            "sys_s": ru.ru_stime - ru0.ru_stime, "minor_faults": ru.ru_minflt - ru0.ru_minflt,
+            "direct_io": direct}
 
 
 # -- 2. replay timing ---------------------------------------------------------------------------------
@@ -406,7 +445,7 @@ def run_bench(quick: bool = False) -> dict:
                      "record_ratio_runs": [a["mb_per_s"] / b["mb_per_s"] for a, b in zip(ours, raw)],
                      "lossless": all(x["lossless"] for x in ours), "messages": ours[0]["recorded"],
                      "payload_mb": ours[0]["bytes"] / 1e6, "file_mb": ours[0]["file_bytes"] / 1e6,
-                     "raw_file_mb": raw[0]["file_bytes"] / 1e6,
+                     "raw_file_mb": raw[0]["file_bytes"] / 1e6, "raw_direct_io": raw[0]["direct_io"],
                      "ours_runs_mb_per_s": [x["mb_per_s"] for x in ours],
                      "raw_runs_mb_per_s": [x["mb_per_s"] for x in raw],
                      # CPU (user + sys) per GB of payload: ours = every node process, raw = this process
@@ -449,7 +488,8 @@ def run_bench(quick: bool = False) -> dict:
                             "maxrate_ticks": cfg["maxrate_ticks"], "repetitions": cfg["reps"],
                             "ours": "CameraSource -> bag_recorder (add_recorder, block inputs) via Launcher; "
                                     "payload bytes / (file closed - first receive)",
-                            "raw": "mcap.writer.Writer in-process, same payloads, chunk size, compression, CRCs",
+                            "raw": "mcap.writer.Writer in-process, same payloads, chunk size, compression, CRCs, "
+                                   "same file output (AppendFile: O_DIRECT where possible)",
                             "statistic": f"median of {cfg['reps']} alternating repetition(s)",
                             "timing_messages": cfg["timing_messages"], "worker_max_sleep_ms": WORKER_MAX_SLEEP_MS},
                   machine={"cpus": os.cpu_count(), "python": platform.python_version(), "mcap": _version("mcap"),

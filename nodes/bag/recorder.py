@@ -62,6 +62,7 @@ class BagRecorder(Node):
         max_size_mb: float = param(0.0, min=0.0, doc="split into _000, _001, ... files of this size; 0 = no split")
         max_duration_s: float = param(0.0, min=0.0, doc="split after this much recorded time; 0 = no split")
         force: bool = param(False, doc="overwrite an existing file")
+        direct_io: bool = param(True, doc="write without the page cache (O_DIRECT) where the file system allows")
         command: str = param("", doc="command line that started the recording (stored in the file)")
 
     def setup(self) -> None:
@@ -69,7 +70,7 @@ class BagRecorder(Node):
         plan = getattr(self.ctx, "plan", {}) or {}
         meta = {"plan": json.dumps(plan), "version": __version__, "git_revision": git_revision(),
                 "command": p.command, "graph_file": str(plan.get("file", ""))}
-        self.writer = BagWriter(p.path, compression=p.compression, force=p.force,
+        self.writer = BagWriter(p.path, compression=p.compression, force=p.force, direct_io=p.direct_io,
                                 max_size=int(p.max_size_mb * 1e6) or None, max_duration_s=p.max_duration_s or None,
                                 metadata={"probeless.graph": meta})
         self.seqs = SeqTracker()
@@ -94,8 +95,8 @@ class BagRecorder(Node):
         self.step = []
 
     def _write(self, msg: RawMessage, log_ns: int) -> None:
-        frames = [getattr(f, "buffer", f) for f in msg.frames]
-        self.writer.write(msg.topic, msg.type_name, msg.version, frames, log_time_ns=log_ns,
+        # the zmq frames are copied once, straight into the chunk in progress; then they can go
+        self.writer.write(msg.topic, msg.type_name, msg.version, msg.frames, log_time_ns=log_ns,
                           publish_time_ns=msg.publish_ns, sequence=msg.seq)
         self.count += 1
 

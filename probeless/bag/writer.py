@@ -1,27 +1,29 @@
 """Write bus messages into MCAP files, optionally split by size or duration.
 
 Each message is stored as its wire frames (see :mod:`probeless.bag.format`); each topic is one MCAP
-channel whose schema is the JSON Schema of its message type (:mod:`probeless.bag.schema`).
+channel whose schema is the JSON Schema of its message type (:mod:`probeless.bag.schema`). The
+file itself is written by :class:`~probeless.bag.mcapfile.McapFile` (chunks built in place,
+compressed and written by a background thread).
 """
 
 from __future__ import annotations
 
-import os
-
 import json
+import os
 import re
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from mcap.writer import CompressionType, Writer
+from mcap.records import Channel, Schema
 
-from probeless.bag.format import MESSAGE_ENCODING, PROFILE, SCHEMA_ENCODING, pack_payload, peek
+from probeless.bag.chunks import COMPRESSIONS, MESSAGE_HEADER, payload_size
+from probeless.bag.format import MESSAGE_ENCODING, PROFILE, SCHEMA_ENCODING, peek
+from probeless.bag.mcapfile import McapFile
 from probeless.bag.schema import json_schema
 from probeless.errors import BagError, SchemaError
 from probeless.messages.base import lookup
 
-_COMPRESSIONS = {"lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD, "none": CompressionType.NONE}
-_MESSAGE_RECORD_OVERHEAD = 31  # opcode, length, channel id, sequence, log and publish time
+DEFAULT_CHUNK_SIZE = 4 * 1024 * 1024
 
 
 def _library() -> str:
@@ -67,48 +69,61 @@ class BagWriter:
     Without ``max_size``/``max_duration_s`` the recording is exactly ``path``. With either, parts are
     named ``<stem>_000.mcap``, ``<stem>_001.mcap``, ...; a new part starts before a message that
     would take the current part past ``max_size`` bytes (estimated from the compressed bytes
-    written, the uncompressed bytes of the chunk in progress and the size of the summary, so parts
-    stay just under the limit; a single larger message gets a part of its own) or past
-    ``max_duration_s`` of log time. Every part is a complete MCAP file with its own schemas,
-    channels and the metadata given so far.
+    written, the uncompressed bytes not written yet and the size of the summary, so parts stay just
+    under the limit; a single larger message gets a part of its own) or past ``max_duration_s`` of
+    log time. Every part is a complete MCAP file with its own schemas, channels and the metadata
+    given so far.
 
     ``compression`` defaults to ``"lz4"``: it is fast enough to keep up with uncompressed camera
     streams on two cores, where zstd is noticeably slower (720p RGB + uint16 depth with sensor
     noise, one core: lz4 writes 277 MB/s and reads 2.2 GB/s, zstd 188 MB/s and 1.0 GB/s, for a
-    file about 25% smaller); ``"none"`` is the fastest. The bus benchmark can refine this choice. Files are always chunked (``chunk_size`` bytes before compression) with
-    chunk CRCs and message indexes, so they seek fast and a killed recording stays readable up to
-    its last complete chunk.
+    file about 25% smaller); ``"none"`` is the fastest. Files are always chunked with chunk CRCs
+    and message indexes, so they seek fast and a killed recording stays readable up to its last
+    written chunk. A chunk is closed once it holds more than ``chunk_size`` bytes of records
+    (before compression; default 4 MiB: 1 MiB and 16 MiB recorded no faster in ``probeless bench
+    bag``, and smaller chunks keep a replay's per-chunk decompression short).
+    Chunks are compressed and written by a background thread; :meth:`flush` waits for them. With
+    ``direct_io`` (the default) files bypass the page cache where the file system allows it
+    (:mod:`probeless.bag.directio`; :attr:`direct_io` says whether the current part does).
 
     An existing file is never overwritten unless ``force``; with ``force`` and splitting, stale
     parts ``<stem>_NNN.mcap`` of an earlier recording are deleted first.
     """
 
-    def __init__(self, path: str | Path, *, compression: str = "lz4", chunk_size: int = 4 * 1024 * 1024,
+    def __init__(self, path: str | Path, *, compression: str = "lz4", chunk_size: int = DEFAULT_CHUNK_SIZE,
                  max_size: int | None = None, max_duration_s: float | None = None, force: bool = False,
-                 metadata: Mapping[str, Mapping[str, str]] | None = None):
-        if compression not in _COMPRESSIONS:
-            raise BagError(f"unknown compression {compression!r}, expected one of {sorted(_COMPRESSIONS)}")
+                 metadata: Mapping[str, Mapping[str, str]] | None = None, direct_io: bool = True):
+        if compression not in COMPRESSIONS:
+            raise BagError(f"unknown compression {compression!r}, expected one of {sorted(COMPRESSIONS)}")
+        if not chunk_size > 0:
+            raise BagError(f"chunk_size must be > 0 bytes, got {chunk_size}")
         if max_size is not None and max_size <= 0:
             raise BagError(f"max_size must be > 0 bytes, got {max_size}")
         if max_duration_s is not None and not max_duration_s > 0:
             raise BagError(f"max_duration_s must be > 0, got {max_duration_s}")
         self.path = Path(path)
-        self._compression = _COMPRESSIONS[compression]
+        self._compression = compression
         self._chunk_size = int(chunk_size)
         self._max_size = max_size
         self._max_duration_ns = None if max_duration_s is None else int(max_duration_s * 1e9)
         self._split = max_size is not None or max_duration_s is not None
         self._force = force
+        self._direct_io = direct_io
         self._metadata = {name: _check_metadata(name, data) for name, data in (metadata or {}).items()}
         self._topic_types: dict[str, tuple[str, int]] = {}
         self._schema_data: dict[str, bytes] = {}
         self._paths: list[Path] = []
-        self._writer: Writer | None = None
+        self._mcap: McapFile | None = None
         self._file: Any = None
         self._closed = False
         self.message_count = 0
         self._prepare()
         self._open_part()
+
+    @property
+    def direct_io(self) -> bool:
+        """Whether the part in progress is written without the page cache."""
+        return self._mcap.direct_io
 
     @property
     def paths(self) -> list[Path]:
@@ -129,36 +144,36 @@ class BagWriter:
         else:
             name = self.path
         try:
-            self._file = open(name, "wb" if self._force else "xb")
+            self._file = open(name, "wb" if self._force else "xb", buffering=0)
         except FileExistsError:
             raise BagError(f"{name} already exists; pass --force to overwrite it") from None
         except OSError as exc:
             raise BagError(f"cannot create {name}: {exc.strerror or exc}") from None
         self._paths.append(name)
-        self._writer = Writer(self._file, chunk_size=self._chunk_size, compression=self._compression,
-                              enable_crcs=True)
-        self._writer.start(profile=PROFILE, library=_library())
-        for meta_name, data in self._metadata.items():
-            self._writer.add_metadata(meta_name, data)
+        try:
+            self._mcap = McapFile(self._file, compression=self._compression, chunk_size=self._chunk_size,
+                                  profile=PROFILE, library=_library(), direct_io=self._direct_io)
+            for meta_name, data in self._metadata.items():
+                self._mcap.add_metadata(meta_name, data)
+        except OSError as exc:
+            self._file.close()
+            raise BagError(f"cannot write {name}: {exc.strerror or exc}") from None
         self._channels: dict[str, int] = {}
         self._schemas: dict[str, int] = {}
         self._part_messages = 0
         self._part_first_ns = 0
-        self._pending = 0       # uncompressed bytes added since the file position last moved
-        self._last_pos = self._file.tell()
-        self._chunks_written = 0
         self._registered = 0    # bytes of schema and channel records, repeated in the summary
 
     def _finish_part(self, extra: Mapping[str, Mapping[str, str]] | None = None) -> None:
         try:
             for meta_name, data in (extra or {}).items():
-                self._writer.add_metadata(meta_name, data)
-            self._writer.finish()
-            self._file.flush()
+                self._mcap.add_metadata(meta_name, data)
+            self._mcap.finish()
             os.fsync(self._file.fileno())  # a finished recording is on disk, not only in the page cache
-            self._file.close()
         except OSError as exc:
             raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
+        finally:
+            self._file.close()
 
     def _channel(self, topic: str, type_name: str, version: int) -> int:
         known = self._topic_types.get(topic)
@@ -177,14 +192,15 @@ class BagWriter:
                 raise BagError(f"topic {topic!r}: cannot record {type_name} schema version {version}, "
                                f"this build has version {cls.VERSION}")
             self._schema_data[type_name] = json.dumps(json_schema(cls), separators=(",", ":")).encode()
+        schema = None
         sid = self._schemas.get(type_name)
         if sid is None:
-            sid = self._schemas[type_name] = self._writer.register_schema(
-                name=type_name, encoding=SCHEMA_ENCODING, data=self._schema_data[type_name])
+            sid = self._schemas[type_name] = len(self._schemas) + 1
+            schema = Schema(id=sid, name=type_name, encoding=SCHEMA_ENCODING, data=self._schema_data[type_name])
             self._registered += 30 + len(type_name) + len(self._schema_data[type_name])
-        cid = self._channels[topic] = self._writer.register_channel(
-            topic=topic, message_encoding=MESSAGE_ENCODING, schema_id=sid,
-            metadata={"type": type_name, "version": str(version)})
+        cid = self._channels[topic] = len(self._channels) + 1
+        self._mcap.register(schema, Channel(id=cid, topic=topic, message_encoding=MESSAGE_ENCODING, schema_id=sid,
+                                            metadata={"type": type_name, "version": str(version)}))
         self._topic_types[topic] = (type_name, version)
         self._registered += 60 + len(topic) + len(type_name)
         return cid
@@ -196,8 +212,12 @@ class BagWriter:
             return True
         if self._max_size is None:
             return False
-        summary = 300 + self._registered + (self._chunks_written + 1) * (90 + 10 * len(self._channels))
-        return self._last_pos + self._pending + size + summary > self._max_size
+        m = self._mcap
+        summary = 300 + self._registered + (m.stats.chunk_count + 1) * (90 + 10 * len(self._channels))
+        if m.written + m.pending + size + summary <= self._max_size:
+            return False
+        m.drain()  # queued chunks count uncompressed until written: look again at what they became
+        return m.written + m.pending + size + summary > self._max_size
 
     def write(self, topic: str, type_name: str, version: int, frames_after_topic: Sequence[Any], *,
               log_time_ns: int, publish_time_ns: int, sequence: int = 0) -> None:
@@ -205,33 +225,25 @@ class BagWriter:
 
         ``log_time_ns`` is the receive time, ``publish_time_ns`` the envelope's publish time and
         ``sequence`` the publisher's ``header.seq`` (stored modulo 2**32, MCAP's field is uint32;
-        the exact value stays in the payload). Raises BagError for a type unknown to this build,
-        a schema version other than this build's, or a topic whose type changed.
+        the exact value stays in the payload). Each frame is copied once, into the chunk in
+        progress. Raises BagError for a type unknown to this build, a schema version other than
+        this build's, a topic whose type changed, or a failed write.
         """
         if self._closed:
             raise BagError(f"{self.path}: recording is closed")
-        payload = pack_payload(frames_after_topic)
-        size = len(payload) + _MESSAGE_RECORD_OVERHEAD
-        if self._split and self._should_roll(log_time_ns, size):
-            self._finish_part()
-            self._open_part()
-        cid = self._channel(topic, type_name, version)
         try:
-            self._writer.add_message(cid, log_time=int(log_time_ns), data=payload,
-                                     publish_time=int(publish_time_ns), sequence=int(sequence) & 0xFFFFFFFF)
+            if self._split and self._should_roll(log_time_ns, MESSAGE_HEADER.size + payload_size(frames_after_topic)):
+                self._finish_part()
+                self._open_part()
+            cid = self._channel(topic, type_name, version)
+            self._mcap.add_message(cid, int(log_time_ns), int(publish_time_ns), int(sequence) & 0xFFFFFFFF,
+                                   frames_after_topic)
         except OSError as exc:
             raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
         if self._part_messages == 0:
             self._part_first_ns = log_time_ns
         self._part_messages += 1
         self.message_count += 1
-        if self._max_size is not None:
-            pos = self._file.tell()
-            if pos != self._last_pos:
-                self._pending, self._chunks_written = 0, self._chunks_written + 1
-            else:
-                self._pending += size
-            self._last_pos = pos
 
     def write_frames(self, frames: Sequence[Any], *, log_time_ns: int) -> None:
         """Record full wire frames ``[topic, meta, buf0, ...]``; type, version, publish time and
@@ -248,19 +260,21 @@ class BagWriter:
         if self._closed:
             raise BagError(f"{self.path}: recording is closed")
         self._metadata[name] = _check_metadata(name, data)
-        self._writer.add_metadata(name, self._metadata[name])
-        self._last_pos = self._file.tell()  # the chunk in progress is still pending
+        try:
+            self._mcap.add_metadata(name, self._metadata[name])
+        except OSError as exc:
+            raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
 
     def flush(self) -> None:
-        """Finish the chunk in progress and push it to the OS: a crash after this loses nothing before it."""
+        """Finish the chunk in progress and wait until it is written: a crash after this loses nothing before it."""
         if not self._closed:
-            self._writer.flush()
-            pos = self._file.tell()
-            self._chunks_written += pos != self._last_pos
-            self._last_pos, self._pending = pos, 0
+            try:
+                self._mcap.flush()
+            except OSError as exc:
+                raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
 
     def close(self, extra_metadata: Mapping[str, Mapping[str, str]] | None = None) -> None:
-        """Write the summary and close; ``extra_metadata`` goes into the last part only. Idempotent."""
+        """Write the summary, fsync and close; ``extra_metadata`` goes into the last part only. Idempotent."""
         if self._closed:
             return
         self._closed = True
