@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from probeless.errors import SchemaError
 from probeless.messages.base import Message, Struct, message
 from probeless.messages.header import Header
 
@@ -48,3 +49,33 @@ class NodeStatus(Message):
     timings: tuple[StageTiming, ...] = ()       # one entry per callback/stage
     inputs: tuple[InputCounters, ...] = ()      # one entry per subscribed input
     published: tuple[str, ...] = ()             # "<output>=<count>" messages published per output
+
+
+TRACKING_STATES = ("initializing", "ok", "lost", "invalid_input")
+
+
+@message("diagnostics/TrackingState", version=1)
+@dataclass(frozen=True)
+class TrackingState(Message):
+    """Camera tracking health, published by a SLAM node for every frame it processes.
+
+    Counters are cumulative since the node started; every received frame ends up in exactly one
+    of tracked, lost, invalid or skipped, or was dropped before the node saw it.
+    """
+
+    header: Header                  # stamp = the RGB-D frame this state is about; frame_id = the camera frame
+    state: str                      # initializing (no frame mapped yet) | ok | lost | invalid_input
+    reason: str = ""                # why the frame was not tracked, e.g. "fitness 0.12 < 0.3"; "" when ok
+    frames_tracked: int = 0         # frames tracked and mapped, including the first [count]
+    frames_lost: int = 0            # frames whose tracking failed (solver, fitness, NaN, motion) [count]
+    frames_invalid: int = 0         # frames rejected before tracking (no depth, bad size) [count]
+    frames_skipped: int = 0         # messages the node left unpaired (rgb/depth sync failures) [count]
+    frames_dropped: int = 0         # rgb frames that never reached the node (header.seq gaps: queue policy, upstream) [count]
+    consecutive_failures: int = 0   # lost + invalid frames since the last tracked one [count]
+    last_good_stamp_ns: int = 0     # stamp of the last tracked frame; 0 = none yet [ns]
+    fitness: float = 0.0            # inlier fraction of the last tracking, nan when not tracked [0..1]
+    step_ms: float = 0.0            # processing time of this frame (track + map) [ms]
+
+    def validate(self) -> None:
+        if self.state not in TRACKING_STATES:
+            raise SchemaError(f"TrackingState.state: {self.state!r} is not one of {TRACKING_STATES}")

@@ -15,6 +15,7 @@ BUILTIN: dict[str, str] = {
     "fisheye_player": "probeless.nodes.sensors.fisheye_player:FisheyePlayer",
     "opencv_camera": "probeless.nodes.sensors.opencv_camera:OpenCvCamera",
     "realsense": "probeless.nodes.sensors.realsense:RealSenseCamera",
+    "dense_slam": "probeless.nodes.tracking.slam:DenseSlamNode",
     "pose_interp": "probeless.nodes.tracking.pose_interp:PoseInterp",
     "fisheye_undistort": "probeless.nodes.sensors.undistort:FisheyeUndistort",
     "synthetic_rig": "probeless.nodes.sensors.synthetic_rig:SyntheticRig",

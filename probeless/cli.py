@@ -81,6 +81,10 @@ def cmd_bench(ns: argparse.Namespace) -> int:
         from probeless.tools.bench_bag import main as bench_bag
 
         return bench_bag(json_out=ns.json, quick=ns.quick)
+    if ns.what == "slam":
+        from probeless.tools.bench_slam import main as bench_slam
+
+        return bench_slam(json_out=ns.json, quick=ns.quick)
     if ns.what == "sensors":
         from probeless.tools.bench_sensors import main as bench_sensors
 
@@ -168,6 +172,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_dataset_parser(sub)
 
+    from probeless.tracking.eval_cli import add_eval_parser
+    from probeless.tracking.eval_fisheye_cli import add_fisheye_eval
+    from probeless.tracking.slam_cli import add_slam_parser
+
+    add_fisheye_eval(add_eval_parser(sub))
+    add_slam_parser(sub)
+
     c = sub.add_parser("graph", help="draw a launch graph: nodes, topics, message types")
     c.add_argument("graph")
     c.add_argument("args", nargs="*", metavar="name:=value")
@@ -176,7 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_graph)
 
     c = sub.add_parser("bench", help="run a benchmark and print its figures")
-    c.add_argument("what", choices=("bus", "bag", "sensors"))
+    c.add_argument("what", choices=("bus", "bag", "sensors", "slam"))
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.add_argument("--quick", action="store_true", help="fewer messages (for smoke tests)")
     c.set_defaults(func=cmd_bench)

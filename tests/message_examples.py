@@ -15,6 +15,7 @@ import numpy as np
 from probeless.messages import (BrightnessDelta, CameraInfo, Clock, Cubemap, CubemapLevel, DepthImage, Floorplan,
                                 Header, Image, InputCounters, Message, NodeStatus, PointCloud, PoseStamped,
                                 SHCoefficients, StageTiming, Tick, TriangleMesh)
+from probeless.messages.diagnostics import TrackingState
 from probeless.messages.geometry import matrix_from_quat
 
 
@@ -93,10 +94,17 @@ def node_status() -> NodeStatus:
     return NodeStatus(header(""), "relight", "running", 300.0, (timing,), (counters,), ("probe=9000",))
 
 
+def tracking_state() -> TrackingState:
+    return TrackingState(header("rgbd"), "lost", "fitness 0.12 < 0.3", frames_tracked=420, frames_lost=3,
+                         frames_invalid=1, frames_skipped=2, frames_dropped=57, consecutive_failures=2,
+                         last_good_stamp_ns=1_699_999_999_933_333_333, fitness=0.12, step_ms=48.5)
+
+
 EXAMPLES: dict[str, Callable[[], Message]] = {
     "core/Tick": tick,
     "core/Clock": clock,
     "diagnostics/NodeStatus": node_status,
+    "diagnostics/TrackingState": tracking_state,
     "sensor/Image": image,
     "sensor/DepthImage": depth_image,
     "sensor/CameraInfo": camera_info,

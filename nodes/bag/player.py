@@ -11,6 +11,7 @@ recorded time to every node of the graph; its ``epoch`` grows at each loop.
 from __future__ import annotations
 
 import queue
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -23,7 +24,8 @@ from probeless.runtime import Node, param
 
 CLOCK_PERIOD_NS = 10_000_000
 READ_AHEAD = 64  # messages decoded ahead of playback
-PRECISE_SLEEP_S = 0.003  # a message due this soon is waited for with time.sleep, not the 1 ms timer
+PRECISE_SLEEP_S = 0.003
+GIL_SWITCH_S = 0.0002  # GIL hand-over interval in the player process [s]  # a message due this soon is waited for with time.sleep, not the 1 ms timer
 _END = object()
 
 
@@ -95,6 +97,9 @@ class BagPlayer(Node):
 
     def setup(self) -> None:
         p = self.params
+        # The read-ahead thread runs Python (record parsing) between publishes; with the default 5 ms
+        # GIL switch interval a due publish could wait that long for the GIL.
+        sys.setswitchinterval(min(sys.getswitchinterval(), GIL_SWITCH_S))
         self.remap = parse_remaps(p.remap)
         self.reader = BagReader(p.path)
         if self.reader.truncated:

@@ -1,0 +1,259 @@
+"""One Open3D tensor SLAM model on CPU:0: tracking, integration, raycasting and model extraction.
+
+See :mod:`probeless.tracking.slam` for the overview; this module holds the per-frame core.
+Tracking is what ``Model.track_frame_to_model`` does (multi-scale RGB-D odometry of the input frame
+against the raycast frame) but started from a constant-velocity prediction of the pose instead of
+the raycast pose, so skipped frames (a node that drops what it cannot process) do not lose
+tracking. Odometry returns ``raycast_from_input``, so ``world_from_input = world_from_raycast @ it``
+where ``world_from_raycast`` is the pose the last raycast was made at.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import cv2
+import numpy as np
+
+from probeless.errors import ProbelessError
+from probeless.tracking.slam_math import (clean_depth, motion, open3d_message, predict_pose, raycast_pose,
+                                         scaled_K)
+
+DEVICE = "CPU:0"
+
+
+@dataclass(frozen=True)
+class SlamParams:
+    """Dense SLAM settings. Defaults: Open3D's dense_slam example, except as noted."""
+
+    voxel_size: float = 0.01            # TSDF voxel edge [m]; 1 cm (Open3D: 5.8 mm) is room scale and ~2x cheaper
+    block_resolution: int = 16          # voxels per block edge
+    block_count: int = 10000            # initial hash map capacity [blocks] (example: 40000 = 2 GB); grows when full
+    depth_max: float = 3.0              # depth used for tracking and integration [m]
+    depth_min: float = 0.1              # nearest raycast depth [m]
+    depth_diff: float = 0.07            # ICP correspondence distance [m]
+    trunc_voxel_multiplier: float = 8.0  # TSDF truncation = this x voxel_size
+    integrate_every: int = 1            # integrate every k-th tracked frame
+    raycast_every: int = 1              # raycast the model every k-th tracked frame
+    scale: float = 1.0                  # 1/n: track and map at 1/n resolution (0.5 = half)
+    min_fitness: float = 0.3            # fewer inlier correspondences (fraction) = lost
+    max_translation_m: float = 0.3      # larger motion per frame = lost [m]
+    max_rotation_deg: float = 30.0      # larger rotation per frame = lost [deg]
+    min_valid_fraction: float = 0.05    # fewer valid depth pixels (fraction) = invalid input
+    iterations: tuple[int, ...] = (6, 3, 1)  # ICP iterations per pyramid level, coarse to fine
+    raycast_shift: bool = True          # undo the raycast's mean half-voxel bias (slam_math.raycast_pose)
+
+    def __post_init__(self) -> None:
+        n = round(1.0 / self.scale) if self.scale > 0 else 0
+        if n < 1 or abs(1.0 / n - self.scale) > 1e-9:
+            raise ProbelessError(f"SlamParams.scale: must be 1/n for an integer n >= 1 (1, 0.5, 0.25...), got {self.scale}")
+        if self.integrate_every < 1 or self.raycast_every < 1:
+            raise ProbelessError("SlamParams.integrate_every and raycast_every: must be >= 1, got "
+                                 f"{self.integrate_every} and {self.raycast_every}")
+        if not 0 < self.depth_min < self.depth_max or self.voxel_size <= 0 or not self.iterations:
+            raise ProbelessError(f"SlamParams: need 0 < depth_min < depth_max, voxel_size > 0 and iterations; got {self}")
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Outcome of one frame: the pose where tracked, the state and why, and stage costs [ms]."""
+
+    world_from_rgbd: np.ndarray | None      # (4, 4), None unless state == "ok"
+    state: str                              # ok | lost | invalid_input
+    reason: str = ""                        # why the frame was not tracked
+    costs_ms: dict = field(default_factory=dict)  # prepare / track / integrate / raycast [ms]
+    fitness: float = float("nan")           # ICP inlier fraction (nan when not tracked)
+
+
+class DenseSlam:
+    """One tensor SLAM model on CPU:0 (pure: no bus). Frames are (H, W) = (height, width)."""
+
+    def __init__(self, params: SlamParams, K: np.ndarray, width: int, height: int,
+                 world_from_rgbd0: np.ndarray = np.eye(4), *, timed: Callable[[str], Any] | None = None):
+        import open3d as o3d
+
+        # Open3D warns on every frame (range map reallocation, frame id jumps): errors still come as exceptions
+        o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
+        self.o3d, self.params, self.timed = o3d, params, timed
+        self.n = round(1.0 / params.scale)
+        self.width, self.height = width, height
+        self.device = o3d.core.Device(DEVICE)
+        # copies throughout: Open3D rejects unaligned arrays (zero-copy message buffers can be)
+        T0 = np.array(world_from_rgbd0, dtype=np.float64)
+        if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
+            raise ProbelessError(f"DenseSlam: initial pose must be a finite 4x4 matrix, got {T0.shape}")
+        self.model = o3d.t.pipelines.slam.Model(params.voxel_size, params.block_resolution, params.block_count,
+                                                o3d.core.Tensor(T0), self.device)
+        h, w = len(range(0, height, self.n)), len(range(0, width, self.n))
+        K_t = o3d.core.Tensor(scaled_K(K, self.n))
+        self.input = o3d.t.pipelines.slam.Frame(h, w, K_t, self.device)
+        self.raycast = o3d.t.pipelines.slam.Frame(h, w, K_t, self.device)
+        # the raycast carries no colour (point-to-plane tracking ignores it): a placeholder avoids Open3D's warning
+        self.raycast.set_data("color", o3d.core.Tensor(np.zeros((h, w, 3), np.float32)))
+        self.K = K_t
+        self.criteria = [o3d.t.pipelines.odometry.OdometryConvergenceCriteria(i) for i in params.iterations]
+        self.loss = o3d.t.pipelines.odometry.OdometryLossParams(params.depth_diff)
+        self.odometry = o3d.t.pipelines.odometry.rgbd_odometry_multi_scale  # a seam for tests
+        self.method = o3d.t.pipelines.odometry.Method.PointToPlane
+        self.pose = T0                  # last good world_from_rgbd
+        self.raycast_pose = T0          # pose the raycast frame was made at
+        self.tracked = 0                # frames tracked (including the first)
+        self.integrated = 0             # frames integrated into the model
+        self.since_good = 0             # frames since the last good one
+        self.calls = 0                  # frames fed (the time base without stamps)
+        self.good: deque = deque(maxlen=2)  # (time, pose) of the last good frames, for the motion prediction
+
+    def release(self) -> None:
+        """Free the Open3D model and frames now. Open3D checks for unfreed memory when the process
+        exits and turns the exit status into 1 if any is left (objects still referenced at exit)."""
+        self.model = self.input = self.raycast = None
+
+    @property
+    def initialized(self) -> bool:
+        return self.tracked > 0
+
+    def _prepare(self, rgb: np.ndarray, depth: np.ndarray, depth_scale: float) -> str:
+        """Load the frame into the input Frame; returns "" or why the input is unusable."""
+        o3d, p = self.o3d, self.params
+        if rgb.shape != (self.height, self.width, 3) or rgb.dtype != np.uint8:
+            return f"rgb is {rgb.dtype} {rgb.shape}, expected uint8 ({self.height}, {self.width}, 3)"
+        if depth.shape != (self.height, self.width):
+            return f"depth is {depth.shape}, expected ({self.height}, {self.width})"
+        if not depth_scale > 0:
+            return f"depth_scale {depth_scale} is not > 0"
+        if depth.dtype != np.uint16 and not np.issubdtype(depth.dtype, np.floating):
+            return f"depth is {depth.dtype}, expected uint16 (or float in the same units)"
+        depth = clean_depth(depth)[::self.n, ::self.n]
+        valid = np.count_nonzero((depth >= p.depth_min * depth_scale) & (depth <= p.depth_max * depth_scale))
+        if valid < p.min_valid_fraction * depth.size:
+            return f"{valid / depth.size:.1%} valid depth pixels in [{p.depth_min}, {p.depth_max}] m"
+        if self.n > 1:
+            rgb = cv2.resize(rgb, (depth.shape[1], depth.shape[0]), interpolation=cv2.INTER_AREA)
+        self.input.set_data_from_image("depth", o3d.t.geometry.Image(o3d.core.Tensor(np.array(depth, order="C"))))
+        self.input.set_data_from_image("color", o3d.t.geometry.Image(o3d.core.Tensor(np.array(rgb, order="C"))))
+        return ""
+
+    def _track(self, depth_scale: float, guess: np.ndarray) -> tuple[np.ndarray | None, str, float]:
+        """(world_from_rgbd or None, reason, fitness) of the loaded frame against the raycast, ICP
+        started at ``guess`` (world_from_rgbd). What ``Model.track_frame_to_model`` does, which
+        always starts at the raycast pose."""
+        p, o3d = self.params, self.o3d
+        init = np.linalg.inv(self.raycast_pose) @ guess
+        try:
+            r = self.odometry(
+                o3d.t.geometry.RGBDImage(self.input.get_data_as_image("color"), self.input.get_data_as_image("depth")),
+                o3d.t.geometry.RGBDImage(self.raycast.get_data_as_image("color"),
+                                         self.raycast.get_data_as_image("depth")),
+                self.K, o3d.core.Tensor(init), depth_scale, p.depth_max, self.criteria, self.method, self.loss)
+        except RuntimeError as exc:  # "Singular 6x6 linear system" and other solver failures
+            return None, f"tracking failed: {open3d_message(exc)}", float("nan")
+        T = self.raycast_pose @ r.transformation.cpu().numpy()
+        if not np.all(np.isfinite(T)):
+            return None, "tracking gave a non-finite pose", r.fitness
+        if r.fitness < p.min_fitness:
+            return None, f"fitness {r.fitness:.2f} < {p.min_fitness}", r.fitness
+        dt, dr = motion(guess, T)
+        k = self.since_good + 1
+        if dt > p.max_translation_m * k or dr > p.max_rotation_deg * k:
+            return None, f"implausible motion {dt:.3f} m, {dr:.1f} deg from the prediction over {k} frame(s)", r.fitness
+        return T, "", r.fitness
+
+    def predicted(self, t: float) -> np.ndarray:
+        """Pose expected at time ``t`` from the last two good poses (constant velocity)."""
+        if len(self.good) < 2:
+            return self.pose
+        (t0, T0), (t1, T1) = self.good
+        return predict_pose(T0, t0, T1, t1, t)
+
+    def _track_from_guesses(self, depth_scale: float, t: float) -> tuple[np.ndarray | None, str, float]:
+        """Track from the constant-velocity prediction, then (if that fails) from the last good pose."""
+        pred = self.predicted(t)
+        T, why, fitness = self._track(depth_scale, pred)
+        if T is None and not np.allclose(pred, self.pose):
+            T2, why2, fitness2 = self._track(depth_scale, self.pose)
+            if T2 is not None:
+                return T2, why2, fitness2
+        return T, why, fitness
+
+    @contextlib.contextmanager
+    def _stage(self, name: str, costs: dict):
+        """Time a stage into ``costs`` [ms] (and into the caller's ``timed`` hook, e.g. node diagnostics)."""
+        t = time.perf_counter()
+        with self.timed(name) if self.timed else contextlib.nullcontext():
+            yield
+        costs[name] = (time.perf_counter() - t) * 1e3
+
+    def _map(self, T: np.ndarray, depth_scale: float, costs: dict) -> None:
+        """Integrate and/or raycast the tracked frame at pose T, as due."""
+        p, o3c = self.params, self.o3d.core
+        self.model.update_frame_pose(self.tracked, o3c.Tensor(T))
+        if self.tracked % p.integrate_every == 0:
+            with self._stage("integrate", costs):
+                self.model.integrate(self.input, depth_scale, p.depth_max, p.trunc_voxel_multiplier)
+            self.integrated += 1
+        if self.tracked % p.raycast_every == 0:
+            with self._stage("raycast", costs):
+                if p.raycast_shift:
+                    self.model.transformation_frame_to_world = o3c.Tensor(raycast_pose(T, p.voxel_size))
+                # Open3D's default weight threshold min(frame id, 3) assumes one integration per frame
+                self.model.synthesize_model_frame(self.raycast, depth_scale, p.depth_min, p.depth_max,
+                                                  p.trunc_voxel_multiplier, False, float(min(self.integrated - 1, 3)))
+            self.raycast_pose = T
+
+    def step(self, rgb: np.ndarray, depth_uint16: np.ndarray, depth_scale: float,
+             stamp_ns: int | None = None) -> StepResult:
+        """Track one frame and update the model (see the module docstring); never raises on bad data.
+
+        ``stamp_ns`` (capture time) lets the motion prediction account for frames skipped in between;
+        without it frames are taken as equally spaced."""
+        self.calls += 1
+        t = float(stamp_ns) if stamp_ns is not None else float(self.calls)
+        costs: dict[str, float] = {}
+        with self._stage("prepare", costs):
+            why = self._prepare(rgb, depth_uint16, float(depth_scale))
+        if why:
+            self.since_good += self.initialized
+            return StepResult(None, "invalid_input", why, costs)
+        T, fitness = self.pose, float("nan")
+        if self.initialized:
+            with self._stage("track", costs):
+                T, why, fitness = self._track_from_guesses(float(depth_scale), t)
+            if T is None:
+                self.since_good += 1
+                return StepResult(None, "lost", why, costs, fitness)
+        self._map(T, float(depth_scale), costs)
+        self.pose, self.since_good = T, 0
+        self.good.append((t, T))
+        self.tracked += 1
+        return StepResult(T.copy(), "ok", "", costs, fitness)
+
+    def extraction_threshold(self) -> float:
+        """Voxel weight a surface needs to be extracted: 3 observations, fewer while the model is young."""
+        return float(max(1, min(3, self.integrated)))
+
+    def extract_pointcloud(self, max_points: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(points (N, 3) float32 [m, world], colours (N, 3) float32 0..1) of the model's surface;
+        at most ``max_points``, evenly subsampled."""
+        pcd = self.model.extract_pointcloud(self.extraction_threshold())
+        if pcd.is_empty():
+            return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)
+        pts = pcd.point.positions.numpy().astype(np.float32)
+        cols = pcd.point.colors.numpy().astype(np.float32, copy=False) if "colors" in pcd.point else np.zeros_like(pts)
+        if max_points is not None and len(pts) > max_points:
+            keep = np.linspace(0, len(pts) - 1, max_points).astype(np.int64)
+            pts, cols = pts[keep], cols[keep]
+        return np.ascontiguousarray(pts), np.ascontiguousarray(np.clip(cols, 0.0, 1.0))
+
+    def extract_mesh(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(vertices (V, 3) float32 [m, world], triangles (T, 3) int32, colours (V, 3) float32 0..1)."""
+        mesh = self.model.extract_trianglemesh(self.extraction_threshold())
+        if mesh.is_empty() or "indices" not in mesh.triangle:
+            return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), np.zeros((0, 3), np.float32)
+        v = mesh.vertex.positions.numpy().astype(np.float32)
+        tri = mesh.triangle.indices.numpy().astype(np.int32)
+        c = mesh.vertex.colors.numpy().astype(np.float32) if "colors" in mesh.vertex else np.zeros_like(v)
+        return v, tri, np.clip(c, 0.0, 1.0)

@@ -1,0 +1,120 @@
+"""``probeless eval slam DATASET``: run the dense SLAM over a dataset, scene or recording and score it.
+
+The figures are :func:`probeless.tracking.slam_report.slam_report`'s. With ``--trajectory-out`` the
+estimate and the ground truth are written in TUM format, so that TUM's ``evaluate_ate.py
+GROUNDTRUTH ESTIMATE`` reproduces the ATE printed here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+# SlamParams fields settable from the command line (importing SlamParams here would slow every
+# ``probeless`` command down by ~0.5 s; tests check that these fields exist with these types).
+SLAM_FLAGS: dict[str, type] = {
+    "voxel_size": float, "depth_max": float, "depth_min": float, "depth_diff": float,
+    "trunc_voxel_multiplier": float, "integrate_every": int, "raycast_every": int, "scale": float,
+    "min_fitness": float, "iterations": tuple, "raycast_shift": bool,
+}
+
+
+def add_eval_parser(sub: Any) -> Any:
+    """Add the ``eval`` command group with ``slam``; returns its subparsers for further evaluations."""
+    p = sub.add_parser("eval", help="evaluate pipeline stages against ground truth")
+    evals = p.add_subparsers(dest="eval_command", required=True)
+    c = evals.add_parser("slam", help="run the dense SLAM on a dataset and report ATE, RPE, failures and costs")
+    c.add_argument("dataset", metavar="DATASET", help="RGB-D dataset folder, scene file (.yaml) or recording (.mcap)")
+    c.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    c.add_argument("--plot", metavar="OUT.png", help="write estimated vs true trajectory and the error over time")
+    c.add_argument("--trajectory-out", metavar="TRAJ.txt", help="write the estimate in TUM format, and the ground "
+                                                               "truth beside it (TRAJ.groundtruth.txt)")
+    c.add_argument("--groundtruth-out", metavar="GT.txt", help="where to write the ground truth (TUM format)")
+    c.add_argument("--start", type=int, default=0, help="first frame")
+    c.add_argument("--max-frames", type=int, default=0, help="frames to run; 0 = all")
+    c.add_argument("--stride", type=int, default=1, help="use every n-th frame")
+    c.add_argument("--rpe-delta-s", type=float, default=1.0, help="interval of the drift RPE [s] (default 1)")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    g = c.add_argument_group("SLAM parameters (default: probeless.tracking.dense.SlamParams)")
+    for name, kind in SLAM_FLAGS.items():
+        flag, dest = "--" + name.replace("_", "-"), "slam_" + name
+        if kind is bool:
+            g.add_argument(flag, dest=dest, default=None, action=argparse.BooleanOptionalAction)
+        else:
+            g.add_argument(flag, dest=dest, default=None, metavar=name.upper(),
+                           **({"nargs": "+", "type": int} if kind is tuple else {"type": kind}))
+    c.set_defaults(func=cmd_eval_slam)
+    return evals
+
+
+def slam_params(ns: argparse.Namespace):
+    """SlamParams with the fields given on the command line replaced."""
+    from probeless.tracking.dense import SlamParams
+
+    given = {k: getattr(ns, "slam_" + k) for k in SLAM_FLAGS if getattr(ns, "slam_" + k, None) is not None}
+    if "iterations" in given:
+        given["iterations"] = tuple(given["iterations"])
+    return SlamParams(**given)
+
+
+def write_outputs(run, r: dict, ns: argparse.Namespace) -> None:
+    """Trajectory files and plot the command line asked for; their paths go into the report ``r``."""
+    from probeless.tracking.metrics import align_points, ate_errors
+    from probeless.tracking.slam_report import mm
+
+    if ns.trajectory_out or ns.groundtruth_out:
+        from probeless.tracking.tum import write_tum
+
+        if ns.trajectory_out:
+            r["trajectory"] = str(write_tum(ns.trajectory_out, run.stamps_ns, run.poses))
+        gt_path = ns.groundtruth_out or str(Path(ns.trajectory_out).with_suffix(".groundtruth.txt"))
+        r["groundtruth"] = str(write_tum(gt_path, run.stamps_ns, run.gt))
+    if ns.plot:
+        from probeless.tracking.plots import plot_trajectory
+
+        ate = ate_errors(run.poses, run.gt)
+        t_s = (run.stamps_ns - run.stamps_ns[0]) / 1e9
+        tracked = np.array([p is not None for p in run.poses])
+        est_all = align_points(np.array([p[:3, 3] for p in run.poses if p is not None]), ate)
+        title = f"{Path(r['dataset']).name}: ATE RMSE {mm(r['ate']['rmse'])} over {r['ate']['n']} frames"
+        r["plot"] = str(plot_trajectory(ns.plot, t_s=t_s[tracked], est_aligned=est_all, gt_t_s=t_s[ate["indices"]],
+                                        gt=ate["gt"], gt_est=ate["est_aligned"], errors=ate["errors"], title=title))
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """Send file descriptor 1 to stderr meanwhile: native libraries (Open3D) print warnings on stdout."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def cmd_eval_slam(ns: argparse.Namespace) -> int:
+    """Run, score, write; prints the report (one JSON object with --json). Returns the exit status."""
+    from probeless.tracking.slam import run_slam
+    from probeless.tracking.slam_report import format_report, slam_report
+
+    params = slam_params(ns)
+    t0 = time.perf_counter()
+    with stdout_to_stderr():
+        run = run_slam(ns.dataset, params, start=ns.start, max_frames=ns.max_frames, stride=ns.stride,
+                       progress=not ns.no_progress)
+        r = slam_report(run, ns.dataset, params, ns.rpe_delta_s)
+        r["wall_s"] = time.perf_counter() - t0
+        write_outputs(run, r, ns)
+    print(json.dumps(r, indent=2) if ns.json else format_report(r))
+    return 0
