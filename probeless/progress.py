@@ -1,8 +1,10 @@
-"""One progress bar for long commands (rich, on stderr so ``--json`` output stays clean)."""
+"""Console helpers for long commands: a progress bar, and keeping stdout clean for ``--json`` output."""
 
 from __future__ import annotations
 
 import contextlib
+import os
+import sys
 from typing import Callable, Iterator
 
 
@@ -19,3 +21,17 @@ def progress(total: int, label: str, enabled: bool = True, transient: bool = Fal
                   console=Console(stderr=True), transient=transient) as bar:
         task = bar.add_task(label, total=total)
         yield lambda: bar.advance(task)
+
+
+@contextlib.contextmanager
+def stdout_to_stderr() -> Iterator[None]:
+    """Send file descriptor 1 to stderr meanwhile: native libraries (Open3D) print warnings on stdout."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)

@@ -33,7 +33,6 @@ machine are noisy: run it on an otherwise idle machine for figures to quote.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import statistics
@@ -44,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from probeless.progress import stdout_to_stderr
 from probeless.tools.bench_common import log, rounded, run_cli
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "rgbd" / "sevenscenes_kinect_0000-0399"
@@ -74,20 +74,6 @@ nodes:
     outputs: [pose, tracking, model/points]
     params: {params}
 """
-
-
-@contextlib.contextmanager
-def stdout_to_stderr():
-    """Native libraries may print on file descriptor 1; keep stdout for the JSON object."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        os.dup2(2, 1)
-        yield
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(saved)
 
 
 def _stats(v: list[float]) -> dict:

@@ -8,15 +8,14 @@ GROUNDTRUTH ESTIMATE`` reproduces the ATE printed here.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
-import os
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from probeless.progress import stdout_to_stderr
 
 # SlamParams fields settable from the command line (importing SlamParams here would slow every
 # ``probeless`` command down by ~0.5 s; tests check that these fields exist with these types).
@@ -87,20 +86,6 @@ def write_outputs(run, r: dict, ns: argparse.Namespace) -> None:
         title = f"{Path(r['dataset']).name}: ATE RMSE {mm(r['ate']['rmse'])} over {r['ate']['n']} frames"
         r["plot"] = str(plot_trajectory(ns.plot, t_s=t_s[tracked], est_aligned=est_all, gt_t_s=t_s[ate["indices"]],
                                         gt=ate["gt"], gt_est=ate["est_aligned"], errors=ate["errors"], title=title))
-
-
-@contextlib.contextmanager
-def stdout_to_stderr():
-    """Send file descriptor 1 to stderr meanwhile: native libraries (Open3D) print warnings on stdout."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        os.dup2(2, 1)
-        yield
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(saved)
 
 
 def cmd_eval_slam(ns: argparse.Namespace) -> int:
