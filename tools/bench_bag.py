@@ -64,7 +64,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from probeless.tools.bench_common import finite_median, log, rounded, run_cli
+from probeless.tools.bench_common import emit, finite_median, log, rounded, run_cli
 
 GOALS = {"record_ratio_min": 0.7, "replay_p99_ms_max": 2.0, "lockstep_identical": True, "lossless": True}
 COMPRESSIONS = ("none", "lz4")
@@ -566,11 +566,7 @@ def main(json_out: bool = False, quick: bool = False) -> int:
     """Run the benchmark; print tables, or exactly one JSON object with ``json_out``.
     1 on any loss or a lockstep mismatch."""
     result = run_bench(quick=quick)
-    if json_out:
-        sys.stdout.write(json.dumps(result) + "\n")
-        sys.stdout.flush()
-    else:
-        print_table(result)
+    emit(result, json_out, print_table)
     return 0 if result["lossless"] and result["lockstep"]["identical"] else 1
 
 

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from probeless.tools.bench_common import finite_median, log, rounded, run_cli
+from probeless.tools.bench_common import emit, finite_median, log, rounded, run_cli
 
 GOALS = {"throughput_ratio_min": 0.8, "latency_added_p50_ms_max": 0.3}
 QUEUE_SIZE = 8
@@ -350,11 +350,7 @@ def print_table(result: dict) -> None:
 def main(json_out: bool = False, quick: bool = False) -> int:
     """Run the benchmark; print a table, or exactly one JSON object with ``json_out``. 1 on any loss."""
     result = run_bench(quick=quick)
-    if json_out:
-        sys.stdout.write(json.dumps(result) + "\n")
-        sys.stdout.flush()
-    else:
-        print_table(result)
+    emit(result, json_out, print_table)
     return 0 if result["lossless"] else 1
 
 

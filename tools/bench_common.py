@@ -30,6 +30,17 @@ def rounded(obj: Any) -> Any:
     return obj
 
 
+def emit(result: dict, json_out: bool, print_table) -> None:
+    """Print the benchmark's result: exactly one JSON object line with ``json_out``, else ``print_table(result)``."""
+    if json_out:
+        import json
+
+        sys.stdout.write(json.dumps(result) + "\n")
+        sys.stdout.flush()
+    else:
+        print_table(result)
+
+
 def run_cli(main, description: str) -> None:
     """``python -m probeless.tools.bench_X [--json] [--quick]``: parse, run ``main``, exit with its code."""
     import argparse

@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from probeless.progress import stdout_to_stderr
-from probeless.tools.bench_common import log, rounded, run_cli
+from probeless.tools.bench_common import emit, log, rounded, run_cli
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "rgbd" / "sevenscenes_kinect_0000-0399"
 NODE = "probeless.nodes.tracking.slam:DenseSlamNode"
@@ -256,11 +256,7 @@ def print_table(r: dict) -> None:
 def main(json_out: bool = False, quick: bool = False) -> int:
     """Run the benchmark; a table, or exactly one JSON object with ``json_out``. 0 always (figures, not a test)."""
     result = run_bench(quick=quick)
-    if json_out:
-        sys.stdout.write(json.dumps(result) + "\n")
-        sys.stdout.flush()
-    else:
-        print_table(result)
+    emit(result, json_out, print_table)
     return 0
 
 
