@@ -34,3 +34,10 @@ class Clock(Message):
     header: Header
     rate: float = 1.0   # playback speed factor (0 = as fast as possible) [ratio]
     epoch: int = 0      # incremented when time jumps backwards (replay loop) [count]
+
+
+def shift_stamp(msg, offset_ns: int):
+    """``msg`` (any message with a ``header``) with its header stamp moved by ``offset_ns``."""
+    import dataclasses
+
+    return dataclasses.replace(msg, header=dataclasses.replace(msg.header, stamp_ns=msg.header.stamp_ns + offset_ns))

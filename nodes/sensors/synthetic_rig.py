@@ -6,8 +6,10 @@ import time
 from dataclasses import dataclass
 
 from probeless.messages.geometry import Floorplan, PoseStamped
+from probeless.messages.header import shift_stamp
 from probeless.messages.lighting import Cubemap
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
+
 from probeless.runtime import Node, param
 from probeless.scene.parse import load_scene
 from probeless.scene.rig import Rig, frame_schedule
@@ -54,7 +56,7 @@ class SyntheticRig(Node):
         self.lockstep = p.rate == 0
         self.passes, self.next, self.t0 = 0, 0, None
         origin_ns = self.ctx.now_ns() if p.stamps == "wall" else 0
-        self.ctx.publish("floorplan", _shifted(self.rig.floorplan(), origin_ns))
+        self.ctx.publish("floorplan", shift_stamp(self.rig.floorplan(), origin_ns))
         self.timer = self.ctx.create_timer(0.002, self._step, name="render")
 
     def _step(self) -> None:
@@ -80,7 +82,7 @@ class SyntheticRig(Node):
         else:
             offset_ns = int(round(offset_s * 1e9))
         for output, msg in messages:
-            self.ctx.publish(output, _shifted(msg, offset_ns) if offset_ns else msg)
+            self.ctx.publish(output, shift_stamp(msg, offset_ns) if offset_ns else msg)
         self.next += 1
         if self.lockstep:
             self.ctx.wait_quiescent()
@@ -100,10 +102,3 @@ class SyntheticRig(Node):
         if getattr(self, "rig", None) is not None:
             self.rig.release()
 
-
-def _shifted(msg, offset_ns: int):
-    """The message with its header stamp moved by ``offset_ns`` (for looped passes)."""
-    import dataclasses
-
-    header = dataclasses.replace(msg.header, stamp_ns=msg.header.stamp_ns + offset_ns)
-    return dataclasses.replace(msg, header=header)

@@ -17,11 +17,11 @@ they keep increasing across passes (synchronisers drop stamps that go backwards)
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from typing import Callable, Iterator
 
 from probeless.messages.base import Message
+from probeless.messages.header import shift_stamp
 from probeless.nodes.bag.player import PRECISE_SLEEP_S, ReadAhead
 
 Group = tuple[int, list[tuple[str, Message]]]
@@ -29,10 +29,7 @@ READ_AHEAD_FRAMES = 8
 STAMPS = ("dataset", "wall")
 
 
-def shifted(msg: Message, offset_ns: int) -> Message:
-    """``msg`` with its header stamp moved by ``offset_ns``."""
-    header = dataclasses.replace(msg.header, stamp_ns=msg.header.stamp_ns + offset_ns)
-    return dataclasses.replace(msg, header=header)
+
 
 
 class Playback:
@@ -84,7 +81,7 @@ class Playback:
                 self.ctx.wait_quiescent()
             offset = self.ctx.now_ns() - stamp if self.wall else 0
             for output, msg in msgs:
-                self.ctx.publish(output, shifted(msg, offset) if offset else msg)
+                self.ctx.publish(output, shift_stamp(msg, offset) if offset else msg)
             self.published += 1
             self.pending = None
             if self.rate == 0:

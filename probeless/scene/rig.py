@@ -20,7 +20,7 @@ from typing import Iterator
 import numpy as np
 
 from probeless.messages.geometry import Floorplan, PoseStamped
-from probeless.messages.header import Header
+from probeless.messages.header import Header, shift_stamp
 from probeless.messages.lighting import Cubemap
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.scene.build import build_geometry
@@ -161,13 +161,13 @@ class Rig:
         rgbd_info, fisheye_info = self.camera_infos()
         if event.kind == RGBD_FRAME:
             rgb, depth, pose = self.render_rgbd(event)
-            yield "rgbd/camera_info", _restamp(rgbd_info, stamp)
+            yield "rgbd/camera_info", shift_stamp(rgbd_info, stamp)
             yield "gt/rgbd_pose", PoseStamped(Header(stamp, "world"), RGBD_FRAME, pose)
             yield "rgb", Image(Header(stamp, RGBD_FRAME), rgb, "rgb8")
             yield "depth", DepthImage(Header(stamp, RGBD_FRAME), depth, 1000.0)
             return
         image, pose = self.render_fisheye(event)
-        yield "fisheye/camera_info", _restamp(fisheye_info, stamp)
+        yield "fisheye/camera_info", shift_stamp(fisheye_info, stamp)
         yield "gt/fisheye_pose", PoseStamped(Header(stamp, "world"), FISHEYE_FRAME, pose)
         yield "fisheye", Image(Header(stamp, FISHEYE_FRAME), image, "rgb8")
         if not self.envmaps:
@@ -186,7 +186,3 @@ class Rig:
     def release(self) -> None:
         self.renderer.release()
 
-
-def _restamp(info: CameraInfo, stamp_ns: int) -> CameraInfo:
-    return CameraInfo(Header(stamp_ns, info.header.frame_id), info.width, info.height, info.model, info.K, info.D,
-                      info.xi, info.ocam_poly, info.ocam_invpoly, info.ocam_affine, info.ocam_center)
