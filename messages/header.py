@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from probeless.messages.base import Message, Struct, message
 
@@ -38,6 +38,4 @@ class Clock(Message):
 
 def shift_stamp(msg, offset_ns: int):
     """``msg`` (any message with a ``header``) with its header stamp moved by ``offset_ns``."""
-    import dataclasses
-
-    return dataclasses.replace(msg, header=dataclasses.replace(msg.header, stamp_ns=msg.header.stamp_ns + offset_ns))
+    return replace(msg, header=replace(msg.header, stamp_ns=msg.header.stamp_ns + offset_ns))
