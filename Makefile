@@ -10,6 +10,8 @@ demo: setup
 	.venv/bin/probeless scene render launch/scenes/l_shaped_lounge.yaml --duration 2 -o out/demo/lounge_2s.mcap --force
 	.venv/bin/probeless bag info out/demo/lounge_2s.mcap
 	.venv/bin/probeless graph launch/synthetic_rig.yaml --out out/demo/graph.png
+	.venv/bin/probeless launch launch/coarse_model.yaml out_dir:=out/demo/coarse
+	.venv/bin/probeless coarse preview launch/scenes/partition_room.yaml --duration 4 -o out/demo/coarse_preview
 
 test: setup
 	.venv/bin/python -m pytest -q

@@ -17,6 +17,8 @@ BUILTIN: dict[str, str] = {
     "realsense": "probeless.nodes.sensors.realsense:RealSenseCamera",
     "dense_slam": "probeless.nodes.tracking.slam:DenseSlamNode",
     "pose_interp": "probeless.nodes.tracking.pose_interp:PoseInterp",
+    "coarse_texturer": "probeless.nodes.coarse.texturer:CoarseTexturer",
+    "brightness_estimator": "probeless.nodes.coarse.brightness:BrightnessEstimator",
     "fisheye_undistort": "probeless.nodes.sensors.undistort:FisheyeUndistort",
     "synthetic_rig": "probeless.nodes.sensors.synthetic_rig:SyntheticRig",
     "bench_source": "probeless.tools.bench_nodes:BenchSource",

@@ -89,6 +89,11 @@ def cmd_bench(ns: argparse.Namespace) -> int:
         from probeless.tools.bench_sensors import main as bench_sensors
 
         return bench_sensors(json_out=ns.json, quick=ns.quick)
+    if ns.what == "coarse":
+        from probeless.tools.bench_coarse import main as bench_coarse
+
+        return bench_coarse(json_out=ns.json, quick=ns.quick, atlas_size=ns.atlas_size, frames=ns.frames,
+                            scene=ns.scene, serial_texels=ns.serial_texels)
     raise ProbelessError(f"unknown benchmark {ns.what!r}")
 
 
@@ -179,6 +184,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_fisheye_eval(add_eval_parser(sub))
     add_slam_parser(sub)
 
+    from probeless.coarse.cli import add_coarse_parser
+
+    add_coarse_parser(sub)
+
     c = sub.add_parser("graph", help="draw a launch graph: nodes, topics, message types")
     c.add_argument("graph")
     c.add_argument("args", nargs="*", metavar="name:=value")
@@ -187,9 +196,14 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_graph)
 
     c = sub.add_parser("bench", help="run a benchmark and print its figures")
-    c.add_argument("what", choices=("bus", "bag", "sensors", "slam"))
+    c.add_argument("what", choices=("bus", "bag", "sensors", "slam", "coarse"))
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.add_argument("--quick", action="store_true", help="fewer messages (for smoke tests)")
+    c.add_argument("--atlas-size", type=int, default=2048, help="coarse: atlas side [texels] (default 2048)")
+    c.add_argument("--frames", type=int, help="coarse: fisheye frames, the first a warm-up (default 45, --quick 6)")
+    c.add_argument("--scene", help="coarse: scene file (default launch/scenes/partition_room.yaml)")
+    c.add_argument("--serial-texels", type=int, help="coarse: texels the serial brightness loop is timed on "
+                                                     "(default 20000)")
     c.set_defaults(func=cmd_bench)
     return p
 

@@ -76,3 +76,7 @@ class DatasetError(ProbelessError):
 
 class DeviceError(ProbelessError):
     """A live camera could not be opened or stopped delivering frames."""
+
+
+class GeometryError(ProbelessError):
+    """Bad geometric input: a floorplan that is not a simple counter-clockwise polygon, a viewpoint outside it."""

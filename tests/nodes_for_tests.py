@@ -138,3 +138,26 @@ class TickSink(Node):
     """Accepts only core/Tick on ``image``."""
 
     INPUTS = {"image": Tick}
+
+
+class LoopRelay(Node):
+    """Forwards ``image`` to ``out`` and counts what comes back on ``back`` (one half of a feedback loop)."""
+
+    INPUTS = {"image": Image, "back": Image}
+    OUTPUTS = {"out": Image}
+
+    @dataclass(frozen=True)
+    class Params:
+        out: str = param("")
+
+    def setup(self):
+        self.counts = {"image": 0, "back": 0}
+
+    def on_input(self, name, msg):
+        self.counts[name] += 1
+        if name == "image":
+            self.ctx.publish("out", msg)
+
+    def close(self):
+        if self.params.out:
+            Path(self.params.out).write_text(json.dumps(self.counts))

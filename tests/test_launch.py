@@ -62,6 +62,44 @@ nodes:
     assert "graph finished" in log
 
 
+def test_feedback_input_lets_a_loop_end(tmp_path):
+    # a -> b -> a: without `feedback: true` on a's input from b, neither node would ever see its inputs end
+    g = write_graph(tmp_path, f"""
+nodes:
+  - id: src
+    node: nodes_for_tests:Ticker
+    inputs: {{tick: timer/hz/200}}
+    params: {{count: 20}}
+  - id: a
+    node: nodes_for_tests:LoopRelay
+    inputs:
+      image: {{source: src/image, policy: block, queue_size: 4}}
+      back: {{source: b/out, policy: drop_oldest, queue_size: 4, feedback: true}}
+    params: {{out: {tmp_path}/a.json}}
+  - id: b
+    node: nodes_for_tests:LoopRelay
+    inputs: {{image: {{source: a/out, policy: block, queue_size: 4}}}}
+""")
+    t0 = time.monotonic()
+    code, log = launch(g)
+    assert code == 0, log
+    assert time.monotonic() - t0 < 30
+    counts = json.loads((tmp_path / "a.json").read_text())
+    assert counts["image"] == 20 and 0 < counts["back"] <= 20
+    assert "graph finished" in log
+
+
+def test_feedback_must_be_a_bool(tmp_path):
+    g = write_graph(tmp_path, """
+nodes:
+  - id: src
+    node: nodes_for_tests:Ticker
+    inputs: {tick: {source: timer/hz/10, feedback: maybe}}
+""")
+    with pytest.raises(Exception, match="feedback must be true or false"):
+        load_checked(str(g), {})
+
+
 @pytest.mark.parametrize("policy, queue", [("latest", 1), ("drop_oldest", 3), ("block", 3)])
 def test_queue_policies_count_every_drop(tmp_path, policy, queue):
     count = 60

@@ -22,6 +22,7 @@ from probeless.runtime.testing import run_node
 from probeless.tracking.dense import DenseSlam, SlamParams
 from probeless.tracking.slam import run_slam
 from probeless.tracking.slam_cli import add_slam_parser
+from probeless.tracking.slam_input import prepare_frame
 from probeless.tracking.slam_math import predict_pose
 from probeless.tracking.sources import rgbd_samples
 from probeless.tracking.tum import read_tum, write_tum
@@ -75,6 +76,21 @@ def test_skipped_frames_keep_tracking_with_the_motion_prediction():
     assert run.failures == 0
     travel = np.linalg.norm(run.gt[-1][:3, 3] - run.gt[0][:3, 3])
     assert travel > 0.3 and position_errors(run.poses, run.gt).max() < 0.05
+
+
+def test_prepare_frame_subsamples_and_rejects_sparse_depth():
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(0, 256, (8, 12, 3), dtype=np.uint8)
+    depth = rng.integers(500, 2500, (8, 12)).astype(np.uint16)
+    why, d, c = prepare_frame(rgb, depth, 1000.0, 12, 8, 2, SlamParams())
+    assert why == "" and d.dtype == np.uint16 and d.flags.c_contiguous
+    np.testing.assert_array_equal(d, depth[::2, ::2])
+    block_mean = rgb.reshape(4, 2, 6, 2, 3).astype(float).mean(axis=(1, 3))  # area average of 2x2 blocks
+    assert np.abs(c.astype(float) - block_mean).max() <= 1.0
+    far = np.full_like(depth, 5000)  # 5 m, beyond depth_max = 3 m: no usable depth
+    why, d, c = prepare_frame(rgb, far, 1000.0, 12, 8, 1, SlamParams())
+    assert "0.0% valid depth" in why and d is None and c is None
+    assert "expected uint8" in prepare_frame(rgb.astype(np.float32), depth, 1000.0, 12, 8, 1, SlamParams())[0]
 
 
 def test_predict_pose_continues_a_constant_screw_motion():

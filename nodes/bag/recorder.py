@@ -101,6 +101,8 @@ class BagRecorder(Node):
         self.count += 1
 
     def close(self) -> None:
+        if not hasattr(self, "writer"):
+            return  # setup failed before the file was open: nothing to flush
         self._flush_step()
         report = self.seqs.report()
         for topic, text in report.items():

@@ -13,8 +13,15 @@ from probeless.messages.sensor import Image
 from probeless.runtime import Node, param
 
 
+MAX_LATENCY_MS = 86_400_000.0  # a "latency" beyond a day means the stamps are not on this clock (scene time)
+
+
 def summarize(stamps_ns: list[int], latencies_ms: list[float], seqs: list[int]) -> dict:
-    """Frame count, rate from stamps, latency percentiles and seq gaps of a received stream."""
+    """Frame count, rate from stamps, latency percentiles and seq gaps of a received stream.
+
+    Latency is left out (None) when the stamps are on another clock than the node's (e.g. a
+    synthetic scene's time from 0), where now - stamp means nothing.
+    """
     out = {"frames": len(stamps_ns), "seq_gaps": 0, "rate_hz": 0.0,
            "latency_ms_p50": None, "latency_ms_p99": None}
     if len(seqs) > 1:
@@ -22,7 +29,7 @@ def summarize(stamps_ns: list[int], latencies_ms: list[float], seqs: list[int]) 
     if len(stamps_ns) > 1:
         span = (stamps_ns[-1] - stamps_ns[0]) / 1e9
         out["rate_hz"] = (len(stamps_ns) - 1) / span if span > 0 else 0.0
-    if latencies_ms:
+    if latencies_ms and max(abs(x) for x in latencies_ms) < MAX_LATENCY_MS:
         p50, p99 = np.percentile(latencies_ms, [50, 99])
         out["latency_ms_p50"], out["latency_ms_p99"] = float(p50), float(p99)
     return out

@@ -15,17 +15,9 @@ Keeping up (2 CPU cores, 30 Hz camera): the node cannot process every frame. Run
 ``rgb``/``depth`` inputs with ``policy: latest``: it then always works on the newest frame, and
 frames it cannot process are dropped before it sees them (counted in ``tracking.frames_dropped``
 from header.seq gaps, and by the runtime in diagnostics); a constant-velocity prediction from the
-frame stamps bridges the gaps (:meth:`DenseSlam.predicted`). The defaults trade resolution and
-map update rate for pose rate: track at half resolution (``scale: 0.5``: tracking ~4x and
-raycasting ~3x cheaper; integration cost follows the voxel blocks in view, not the pixels) and
-map every 2nd tracked frame (``integrate_every``/``raycast_every: 2``; the frame between is
-tracked against a raycast one frame old: same accuracy on 7-Scenes). Measured on 7-Scenes
-(``probeless bench slam``, shared 2-core machine): a step costs ~240 ms at full resolution,
-~100 ms at half, ~58 ms with the defaults; on a 30 Hz replay the node sustains ~9 poses/s with
-the defaults and ~6.5 at half resolution mapping every frame, without tracking failures, while
-at full resolution (~3 Hz, 10-frame gaps) it loses tracking within a second and does not recover.
-Model extraction (~170 ms for the point cloud, ~260 ms for the mesh) runs every
-``model_period_s`` on the same thread.
+frame stamps bridges the gaps (:meth:`DenseSlam.predicted`). The defaults (half resolution,
+mapping every 2nd tracked frame) and the measured rates behind them: docs/tracking/README.md.
+Model extraction runs every ``model_period_s`` on the same thread.
 
 A failed frame (solver failure, low fitness, NaN pose, implausible jump, empty or NaN depth) is
 reported on ``tracking`` and logged (the first of a run of failures, then every 30th); the model
@@ -38,48 +30,21 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from probeless.errors import ParamError
 from probeless.messages.diagnostics import TrackingState
-from probeless.messages.geometry import PoseStamped, matrix_from_quat, transform_from
+from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
 from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
+from probeless.nodes.tracking.slam_io import open_trajectory, pose_param, srgb8
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ApproximateTimeSync, ExactTimeSync
 from probeless.tracking.dense import DenseSlam, SlamParams
-from probeless.tracking.tum import HEADER, write_tum_lines
+from probeless.tracking.tum import write_tum_lines
 
 LOG_EVERY = 30  # while tracking stays lost, log one failure in this many
-
-
-def pose_param(values: tuple[float, ...], node_id: str) -> np.ndarray:
-    """world_from_rgbd from ``tx ty tz qx qy qz qw`` (TUM order); identity for an empty tuple."""
-    if not values:
-        return np.eye(4)
-    if len(values) != 7 or not np.all(np.isfinite(values)) or np.linalg.norm(values[3:]) < 1e-9:
-        raise ParamError(f"needs 7 finite numbers tx ty tz qx qy qz qw with a non-zero quaternion, got {list(values)}",
-                         node_id=node_id, key="initial_pose")
-    return transform_from(matrix_from_quat(np.asarray(values[3:])), np.asarray(values[:3]))
-
-
-def open_trajectory(path: str, node_id: str):
-    """The TUM trajectory file, created with its parent folders and header line."""
-    try:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        f = open(path, "w")
-    except OSError as exc:
-        raise ParamError(f"cannot write {path}: {exc.strerror}", node_id=node_id, key="trajectory_out") from None
-    f.write(HEADER + "\n")
-    return f
-
-
-def srgb8(colors: np.ndarray) -> np.ndarray:
-    """Open3D's 0..1 float colours (sRGB values of the images) as uint8 sRGB."""
-    return np.clip(np.round(colors * 255.0), 0, 255).astype(np.uint8)
 
 
 class DenseSlamNode(Node):

@@ -144,6 +144,7 @@ class BagWriter:
         else:
             name = self.path
         try:
+            Path(name).parent.mkdir(parents=True, exist_ok=True)
             self._file = open(name, "wb" if self._force else "xb", buffering=0)
         except FileExistsError:
             raise BagError(f"{name} already exists; pass --force to overwrite it") from None

@@ -40,7 +40,7 @@ from probeless.runtime.queues import POLICIES
 TOP_KEYS = {"description", "args", "hosts", "include", "nodes"}
 NODE_KEYS = {"id", "node", "inputs", "outputs", "params", "restart", "max_restarts", "restart_backoff_s",
              "host", "description"}
-INPUT_KEYS = {"source", "queue_size", "policy"}
+INPUT_KEYS = {"source", "queue_size", "policy", "feedback"}
 INCLUDE_KEYS = {"file", "namespace", "args"}
 DEFAULT_QUEUE = {"policy": "drop_oldest", "queue_size": 10}
 _TIMER = re.compile(r"^timer/(hz|ms|s)/([0-9]*\.?[0-9]+)$")
@@ -57,6 +57,7 @@ class InputDecl:
     queue_size: int = 10
     line: int = 0
     timer_period_ns: int | None = None
+    feedback: bool = False          # closes a loop: does not keep the node running once its other inputs end
 
 
 @dataclass
@@ -264,7 +265,12 @@ def _parse_inputs(inputs: Any, line: int, ns: str, decl: NodeDecl, err) -> None:
         if policy == "latest" and size != 1:
             err("policy 'latest' keeps one message; omit queue_size or set it to 1", iline, decl.id, key)
             continue
+        feedback = spec.get("feedback", False)
+        if not isinstance(feedback, bool):
+            err(f"feedback must be true or false, got {feedback!r}", iline, decl.id, key)
+            continue
         decl.inputs[str(name)] = _input(str(name), spec["source"], ns, policy, size, iline, decl.id, err)
+        decl.inputs[str(name)].feedback = feedback
 
 
 def _input(name: str, source: str, ns: str, policy: str, size: int, line: int, node_id: str, err) -> InputDecl:

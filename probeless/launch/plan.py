@@ -41,7 +41,7 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
         cls = graph.node_classes[decl.id]
         inputs = []
         for inp in decl.inputs.values():
-            entry = {"name": inp.name, "policy": inp.policy, "queue_size": inp.queue_size}
+            entry = {"name": inp.name, "policy": inp.policy, "queue_size": inp.queue_size, "feedback": inp.feedback}
             if inp.timer_period_ns is not None:
                 entry["timer_period_ns"] = inp.timer_period_ns
             else:

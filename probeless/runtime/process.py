@@ -70,6 +70,8 @@ class NodeRuntime:
             self.wires.append(InputWire(CLOCK_INPUT, spec["clock"]["endpoint"], spec["clock"]["topic"], "core/Clock"))
         self.queues = {w.name: InputQueue(w.name, *self._policy(w.name)) for w in self.wires}
         self.open_inputs = set(self.queues) - {CLOCK_INPUT}
+        # a node ends when its inputs have ended; feedback inputs (loops) don't keep it alive
+        self.lifetime_inputs = {i["name"] for i in spec["inputs"] if not i.get("feedback")} & self.open_inputs
         self.callback_names = {name: f"on_input:{name}" for name in self.queues}
         self.topics = {name: out["topic"] for name, out in spec["outputs"].items()}
         self.node: Node | None = None
@@ -221,7 +223,7 @@ class NodeRuntime:
             self.busy = False
             for c in closed:
                 self.node.on_input_closed(c)
-            if self.queues.keys() - {CLOCK_INPUT} and not self.open_inputs:
+            if self.queues.keys() - {CLOCK_INPUT} and not (self.open_inputs & self.lifetime_inputs):
                 return
 
     def _on_clock(self, msg) -> None:

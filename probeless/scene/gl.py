@@ -9,6 +9,7 @@ them the way GLSL ``mat3``/``mat4`` uniforms expect (column-major float32).
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import moderngl
@@ -41,10 +42,15 @@ def create_context(require: int = 430) -> moderngl.Context:
                           f"{exc}") from exc
 
 
-def load_program(ctx: moderngl.Context, name: str, defines: dict[str, object] | None = None):
-    """Compile ``shaders/NAME.*.glsl`` into a Program (or ComputeShader), ``#define``s inserted after ``#version``."""
+def load_program(ctx: moderngl.Context, name: str, defines: dict[str, object] | None = None,
+                 shader_dir: Path = SHADER_DIR, vertex: str | None = None):
+    """Compile ``shader_dir/NAME.*.glsl`` into a Program (or ComputeShader), ``#define``s inserted after ``#version``.
+
+    ``shader_dir`` defaults to this module's ``shaders/``; other packages pass the folder next to their node.
+    ``vertex`` names another program whose vertex shader this one shares (e.g. a full-screen pass).
+    """
     def source(stage: str) -> str | None:
-        path = SHADER_DIR / f"{name}.{stage}.glsl"
+        path = shader_dir / f"{vertex if stage == 'vert' and vertex else name}.{stage}.glsl"
         if not path.exists():
             return None
         head, _, body = path.read_text().partition("\n")
@@ -57,12 +63,24 @@ def load_program(ctx: moderngl.Context, name: str, defines: dict[str, object] | 
             return ctx.compute_shader(stages["comp"])
         if stages["vert"] is None or stages["frag"] is None:
             raise DeviceError(f"shader '{name}': need {name}.vert.glsl and {name}.frag.glsl (or {name}.comp.glsl) "
-                              f"in {SHADER_DIR}")
+                              f"in {shader_dir}")
         return ctx.program(vertex_shader=stages["vert"], fragment_shader=stages["frag"],
                            geometry_shader=stages["geom"])
     except moderngl.Error as exc:
-        raise DeviceError(f"shader '{name}' ({SHADER_DIR}) failed to build on "
+        raise DeviceError(f"shader '{name}' ({shader_dir}) failed to build on "
                           f"{ctx.info['GL_RENDERER']}: {exc}") from exc
+
+
+def current_context(method):
+    """Decorator: make ``self.ctx`` current before the method runs. Several GL objects owning contexts
+    may share a thread; the context stays current afterwards so the caller's GL calls keep working."""
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        self.ctx.__enter__()
+        return method(self, *args, **kwargs)
+
+    return wrapper
 
 
 def set_uniforms(prog: moderngl.Program, **values) -> None:

@@ -9,7 +9,6 @@ construction: the scene is static. The GL context is current on the thread that 
 
 from __future__ import annotations
 
-import functools
 
 import moderngl
 
@@ -23,6 +22,7 @@ from probeless.scene.gl import (
     clip_from_camera,
     copy_to_cube_face,
     create_context,
+    current_context,
     cube_face_clip_from_world,
     float_target,
     load_program,
@@ -62,18 +62,6 @@ def light_uniforms(lights: tuple[AreaLight, ...], scale: np.ndarray, samples: in
             "light_v": [x.half_v for x in lights], "light_normal": [x.normal for x in lights],
             "light_power": power, "shadow_origin": [shadow_origin(x) for x in lights]}
     return {k: np.asarray(v, np.float32).reshape(len(lights), 3) for k, v in rows.items()}
-
-
-def _current(method):
-    """Make this renderer's GL context current first: several renderers (contexts) may share a thread,
-    and the context stays current afterwards so GL calls made by the caller keep working."""
-
-    @functools.wraps(method)
-    def wrapper(self, *args, **kwargs):
-        self.ctx.__enter__()
-        return method(self, *args, **kwargs)
-
-    return wrapper
 
 
 class SceneRenderer:
@@ -172,7 +160,7 @@ class SceneRenderer:
             tex.use(0)
             self._shade_vao.render(moderngl.TRIANGLES, vertices=count, first=first)
 
-    @_current
+    @current_context
     def render_pinhole(self, world_from_camera: np.ndarray, K: np.ndarray, width: int, height: int,
                        light_scale: np.ndarray, near: float = 0.05,
                        far: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
@@ -186,6 +174,16 @@ class SceneRenderer:
         out = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(height, width, 4)
         return np.ascontiguousarray(out[..., :3]), np.ascontiguousarray(out[..., 3])
 
+    @current_context
+    def render_clip(self, clip_from_world: np.ndarray, eye: np.ndarray, width: int, height: int,
+                    light_scale: np.ndarray) -> np.ndarray:
+        """Radiance (H, W, 3) through any projection ``clip_from_world`` (e.g. orthographic); row 0 = clip y -1."""
+        scale = self._set_lights(light_scale)
+        fbo = self._target(width, height)
+        self._draw(fbo, np.asarray(clip_from_world, np.float64), np.asarray(eye, np.float64), np.zeros(4), scale)
+        out = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(height, width, 4)
+        return np.ascontiguousarray(out[..., :3])
+
     def _faces(self, position: np.ndarray, size: int, scale: np.ndarray):
         """Yield (face, framebuffer) once face ``face`` of the cube seen from ``position`` is drawn in it."""
         position = np.asarray(position, np.float64).reshape(3)
@@ -194,7 +192,7 @@ class SceneRenderer:
             self._draw(fbo, clip, position, np.zeros(4), scale)
             yield face, fbo
 
-    @_current
+    @current_context
     def render_cubemap(self, position: np.ndarray, size: int, light_scale: np.ndarray) -> np.ndarray:
         """(6, size, size, 3) radiance seen from ``position`` in the probeless.messages.lighting convention."""
         faces = np.empty((6, size, size, 3), np.float32)
@@ -214,7 +212,7 @@ class SceneRenderer:
             self._ray_tex = (rays, tex)  # holding the array keeps its id from being reused
         return self._ray_tex[1]
 
-    @_current
+    @current_context
     def render_rays(self, world_from_camera: np.ndarray, rays: np.ndarray, light_scale: np.ndarray,
                     cube_size: int = 512) -> np.ndarray:
         """(H, W, 3) radiance along camera-frame unit ``rays`` (H, W, 3) from the camera centre; 0 where invalid.
@@ -242,7 +240,7 @@ class SceneRenderer:
         self._ray_vao.render(moderngl.TRIANGLES, vertices=3)
         return np.frombuffer(fbo.read(components=3, dtype="f4"), np.float32).reshape(height, width, 3).copy()
 
-    @_current
+    @current_context
     def release(self) -> None:
         """Free every GL object (and the context when this renderer created it)."""
         owned = [self._vbo, self._shade_vao, self._shadow_vao, self._ray_vao, self._white, self._shade,

@@ -13,60 +13,17 @@ from __future__ import annotations
 import contextlib
 import time
 from collections import deque
-from dataclasses import dataclass, field
 from typing import Any, Callable
 
-import cv2
 import numpy as np
 
 from probeless.errors import ProbelessError
-from probeless.tracking.slam_math import (clean_depth, motion, open3d_message, predict_pose, raycast_pose,
-                                         scaled_K)
+from probeless.tracking.model_extract import extract_mesh, extract_pointcloud, extraction_threshold
+from probeless.tracking.slam_input import prepare_frame
+from probeless.tracking.slam_math import motion, open3d_message, predict_pose, raycast_pose, scaled_K
+from probeless.tracking.slam_params import SlamParams, StepResult  # noqa: F401 (re-exported)
 
 DEVICE = "CPU:0"
-
-
-@dataclass(frozen=True)
-class SlamParams:
-    """Dense SLAM settings. Defaults: Open3D's dense_slam example, except as noted."""
-
-    voxel_size: float = 0.01            # TSDF voxel edge [m]; 1 cm (Open3D: 5.8 mm) is room scale and ~2x cheaper
-    block_resolution: int = 16          # voxels per block edge
-    block_count: int = 10000            # initial hash map capacity [blocks] (example: 40000 = 2 GB); grows when full
-    depth_max: float = 3.0              # depth used for tracking and integration [m]
-    depth_min: float = 0.1              # nearest raycast depth [m]
-    depth_diff: float = 0.07            # ICP correspondence distance [m]
-    trunc_voxel_multiplier: float = 8.0  # TSDF truncation = this x voxel_size
-    integrate_every: int = 1            # integrate every k-th tracked frame
-    raycast_every: int = 1              # raycast the model every k-th tracked frame
-    scale: float = 1.0                  # 1/n: track and map at 1/n resolution (0.5 = half)
-    min_fitness: float = 0.3            # fewer inlier correspondences (fraction) = lost
-    max_translation_m: float = 0.3      # larger motion per frame = lost [m]
-    max_rotation_deg: float = 30.0      # larger rotation per frame = lost [deg]
-    min_valid_fraction: float = 0.05    # fewer valid depth pixels (fraction) = invalid input
-    iterations: tuple[int, ...] = (6, 3, 1)  # ICP iterations per pyramid level, coarse to fine
-    raycast_shift: bool = True          # undo the raycast's mean half-voxel bias (slam_math.raycast_pose)
-
-    def __post_init__(self) -> None:
-        n = round(1.0 / self.scale) if self.scale > 0 else 0
-        if n < 1 or abs(1.0 / n - self.scale) > 1e-9:
-            raise ProbelessError(f"SlamParams.scale: must be 1/n for an integer n >= 1 (1, 0.5, 0.25...), got {self.scale}")
-        if self.integrate_every < 1 or self.raycast_every < 1:
-            raise ProbelessError("SlamParams.integrate_every and raycast_every: must be >= 1, got "
-                                 f"{self.integrate_every} and {self.raycast_every}")
-        if not 0 < self.depth_min < self.depth_max or self.voxel_size <= 0 or not self.iterations:
-            raise ProbelessError(f"SlamParams: need 0 < depth_min < depth_max, voxel_size > 0 and iterations; got {self}")
-
-
-@dataclass(frozen=True)
-class StepResult:
-    """Outcome of one frame: the pose where tracked, the state and why, and stage costs [ms]."""
-
-    world_from_rgbd: np.ndarray | None      # (4, 4), None unless state == "ok"
-    state: str                              # ok | lost | invalid_input
-    reason: str = ""                        # why the frame was not tracked
-    costs_ms: dict = field(default_factory=dict)  # prepare / track / integrate / raycast [ms]
-    fitness: float = float("nan")           # ICP inlier fraction (nan when not tracked)
 
 
 class DenseSlam:
@@ -118,24 +75,12 @@ class DenseSlam:
 
     def _prepare(self, rgb: np.ndarray, depth: np.ndarray, depth_scale: float) -> str:
         """Load the frame into the input Frame; returns "" or why the input is unusable."""
-        o3d, p = self.o3d, self.params
-        if rgb.shape != (self.height, self.width, 3) or rgb.dtype != np.uint8:
-            return f"rgb is {rgb.dtype} {rgb.shape}, expected uint8 ({self.height}, {self.width}, 3)"
-        if depth.shape != (self.height, self.width):
-            return f"depth is {depth.shape}, expected ({self.height}, {self.width})"
-        if not depth_scale > 0:
-            return f"depth_scale {depth_scale} is not > 0"
-        if depth.dtype != np.uint16 and not np.issubdtype(depth.dtype, np.floating):
-            return f"depth is {depth.dtype}, expected uint16 (or float in the same units)"
-        depth = clean_depth(depth)[::self.n, ::self.n]
-        valid = np.count_nonzero((depth >= p.depth_min * depth_scale) & (depth <= p.depth_max * depth_scale))
-        if valid < p.min_valid_fraction * depth.size:
-            return f"{valid / depth.size:.1%} valid depth pixels in [{p.depth_min}, {p.depth_max}] m"
-        if self.n > 1:
-            rgb = cv2.resize(rgb, (depth.shape[1], depth.shape[0]), interpolation=cv2.INTER_AREA)
-        self.input.set_data_from_image("depth", o3d.t.geometry.Image(o3d.core.Tensor(np.array(depth, order="C"))))
-        self.input.set_data_from_image("color", o3d.t.geometry.Image(o3d.core.Tensor(np.array(rgb, order="C"))))
-        return ""
+        why, depth, rgb = prepare_frame(rgb, depth, depth_scale, self.width, self.height, self.n, self.params)
+        if not why:
+            Image, Tensor = self.o3d.t.geometry.Image, self.o3d.core.Tensor
+            self.input.set_data_from_image("depth", Image(Tensor(depth)))
+            self.input.set_data_from_image("color", Image(Tensor(rgb)))
+        return why
 
     def _track(self, depth_scale: float, guess: np.ndarray) -> tuple[np.ndarray | None, str, float]:
         """(world_from_rgbd or None, reason, fitness) of the loaded frame against the raycast, ICP
@@ -232,28 +177,13 @@ class DenseSlam:
         return StepResult(T.copy(), "ok", "", costs, fitness)
 
     def extraction_threshold(self) -> float:
-        """Voxel weight a surface needs to be extracted: 3 observations, fewer while the model is young."""
-        return float(max(1, min(3, self.integrated)))
+        """Voxel weight a surface needs to be extracted (:func:`.model_extract.extraction_threshold`)."""
+        return extraction_threshold(self.integrated)
 
     def extract_pointcloud(self, max_points: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(points (N, 3) float32 [m, world], colours (N, 3) float32 0..1) of the model's surface;
-        at most ``max_points``, evenly subsampled."""
-        pcd = self.model.extract_pointcloud(self.extraction_threshold())
-        if pcd.is_empty():
-            return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)
-        pts = pcd.point.positions.numpy().astype(np.float32)
-        cols = pcd.point.colors.numpy().astype(np.float32, copy=False) if "colors" in pcd.point else np.zeros_like(pts)
-        if max_points is not None and len(pts) > max_points:
-            keep = np.linspace(0, len(pts) - 1, max_points).astype(np.int64)
-            pts, cols = pts[keep], cols[keep]
-        return np.ascontiguousarray(pts), np.ascontiguousarray(np.clip(cols, 0.0, 1.0))
+        """(points (N, 3) float32 [m, world], colours (N, 3) float32 0..1), at most ``max_points``."""
+        return extract_pointcloud(self.model, self.extraction_threshold(), max_points)
 
     def extract_mesh(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(vertices (V, 3) float32 [m, world], triangles (T, 3) int32, colours (V, 3) float32 0..1)."""
-        mesh = self.model.extract_trianglemesh(self.extraction_threshold())
-        if mesh.is_empty() or "indices" not in mesh.triangle:
-            return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), np.zeros((0, 3), np.float32)
-        v = mesh.vertex.positions.numpy().astype(np.float32)
-        tri = mesh.triangle.indices.numpy().astype(np.int32)
-        c = mesh.vertex.colors.numpy().astype(np.float32) if "colors" in mesh.vertex else np.zeros_like(v)
-        return v, tri, np.clip(c, 0.0, 1.0)
+        return extract_mesh(self.model, self.extraction_threshold())

@@ -1,0 +1,1 @@
+"""Environment-map nodes: cubemap renderer, baseline, IBL compositor."""

@@ -1,0 +1,1 @@
+"""Coarse room model: floorplan prism, atlas texturing from the fisheye, occlusion, inpainting, brightness."""

@@ -1,0 +1,3 @@
+#version 430
+out float visible;
+void main() { visible = 1.0; }

@@ -1,0 +1,52 @@
+"""Settings and per-frame result of :class:`probeless.tracking.dense.DenseSlam` (importable without Open3D)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from probeless.errors import ProbelessError
+
+
+@dataclass(frozen=True)
+class SlamParams:
+    """Dense SLAM settings. Defaults: Open3D's dense_slam example, except as noted."""
+
+    voxel_size: float = 0.01            # TSDF voxel edge [m]; 1 cm (Open3D: 5.8 mm) is room scale and ~2x cheaper
+    block_resolution: int = 16          # voxels per block edge
+    block_count: int = 10000            # initial hash map capacity [blocks] (example: 40000 = 2 GB); grows when full
+    depth_max: float = 3.0              # depth used for tracking and integration [m]
+    depth_min: float = 0.1              # nearest raycast depth [m]
+    depth_diff: float = 0.07            # ICP correspondence distance [m]
+    trunc_voxel_multiplier: float = 8.0  # TSDF truncation = this x voxel_size
+    integrate_every: int = 1            # integrate every k-th tracked frame
+    raycast_every: int = 1              # raycast the model every k-th tracked frame
+    scale: float = 1.0                  # 1/n: track and map at 1/n resolution (0.5 = half)
+    min_fitness: float = 0.3            # fewer inlier correspondences (fraction) = lost
+    max_translation_m: float = 0.3      # larger motion per frame = lost [m]
+    max_rotation_deg: float = 30.0      # larger rotation per frame = lost [deg]
+    min_valid_fraction: float = 0.05    # fewer valid depth pixels (fraction) = invalid input
+    iterations: tuple[int, ...] = (6, 3, 1)  # ICP iterations per pyramid level, coarse to fine
+    raycast_shift: bool = True          # undo the raycast's mean half-voxel bias (slam_math.raycast_pose)
+
+    def __post_init__(self) -> None:
+        n = round(1.0 / self.scale) if self.scale > 0 else 0
+        if n < 1 or abs(1.0 / n - self.scale) > 1e-9:
+            raise ProbelessError(f"SlamParams.scale: must be 1/n for an integer n >= 1 (1, 0.5, 0.25...), got {self.scale}")
+        if self.integrate_every < 1 or self.raycast_every < 1:
+            raise ProbelessError("SlamParams.integrate_every and raycast_every: must be >= 1, got "
+                                 f"{self.integrate_every} and {self.raycast_every}")
+        if not 0 < self.depth_min < self.depth_max or self.voxel_size <= 0 or not self.iterations:
+            raise ProbelessError(f"SlamParams: need 0 < depth_min < depth_max, voxel_size > 0 and iterations; got {self}")
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Outcome of one frame: the pose where tracked, the state and why, and stage costs [ms]."""
+
+    world_from_rgbd: np.ndarray | None      # (4, 4), None unless state == "ok"
+    state: str                              # ok | lost | invalid_input
+    reason: str = ""                        # why the frame was not tracked
+    costs_ms: dict = field(default_factory=dict)  # prepare / track / integrate / raycast [ms]
+    fitness: float = float("nan")           # ICP inlier fraction (nan when not tracked)
