@@ -19,6 +19,7 @@ BUILTIN: dict[str, str] = {
     "pose_interp": "probeless.nodes.tracking.pose_interp:PoseInterp",
     "coarse_texturer": "probeless.nodes.coarse.texturer:CoarseTexturer",
     "brightness_estimator": "probeless.nodes.coarse.brightness:BrightnessEstimator",
+    "baseline_envmap": "probeless.nodes.envmap.baseline:BaselineEnvmap",
     "fisheye_undistort": "probeless.nodes.sensors.undistort:FisheyeUndistort",
     "synthetic_rig": "probeless.nodes.sensors.synthetic_rig:SyntheticRig",
     "bench_source": "probeless.tools.bench_nodes:BenchSource",

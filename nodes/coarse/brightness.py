@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from probeless.cameras import model_from_info
-from probeless.coarse.brightness import draw_sample, estimate_delta
+from probeless.coarse.brightness import DEADBAND, apply_deadband, draw_sample, estimate_delta
 from probeless.coarse.model import CoarseConfig, make_layout
 from probeless.coarse.texels import texel_map
 from probeless.errors import GeometryError, ProbelessError
@@ -71,6 +71,8 @@ class BrightnessEstimator(Node):
         max_pending: int = param(8, min=1, max=1000, doc="frames waiting for their atlas before the oldest "
                                                          "is measured against the newest atlas [count]")
         enabled: bool = param(True, doc="false: publish Δ = 0 (sampled false) for every frame")
+        deadband: float = param(DEADBAND, min=0.0, max=1.0, doc="Δ below this in every channel is published as 0 "
+                                                                "(no drift in a static room) [0..1 LDR]")
 
     def setup(self) -> None:
         self.counts: Counter[str] = Counter()
@@ -164,6 +166,9 @@ class BrightnessEstimator(Node):
             self._once(reason, f"frame {frame.image.header.stamp_ns}: {exc}")
             self._publish(frame.image, np.zeros(3), 0, reason)
             return
+        if used and not apply_deadband(delta, p.deadband).any() and delta.any():
+            self.counts["below_deadband"] += 1
+        delta = apply_deadband(delta, p.deadband)
         held = self.atlas.header.stamp_ns
         # "atlas_ahead": the texturer already applied this frame (it gave up waiting for its Δ)
         reason = "stale_atlas" if held < frame.needs_ns else "atlas_ahead" if held >= frame.image.header.stamp_ns \

@@ -29,6 +29,18 @@ from probeless.messages.geometry import invert_transform
 DARK = 0.01           # a value is black when all channels are <= this [0..1]
 SATURATED = 0.98      # a value is saturated when any channel is >= this [0..1]
 OFFSET_M = 0.01       # wall texels are tested this far inside the room for occlusion [m]
+DEADBAND = 0.5 / 255  # Δ smaller than this (every channel) counts as no change [0..1]
+
+
+def apply_deadband(delta: np.ndarray, threshold: float = DEADBAND) -> np.ndarray:
+    """Δ, or zeros when every channel is below ``threshold`` in magnitude.
+
+    In a static room the per-frame estimate is not exactly 0 (resampling at other fisheye
+    resolutions and angles: about ±0.1 codes a frame on the shipped scenes), and Δ is added to every
+    out-of-view texel each frame, so that noise would accumulate into a drift of several codes.
+    """
+    d = np.asarray(delta, np.float32)
+    return np.zeros(3, np.float32) if np.all(np.abs(d) < threshold) else d
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from probeless.coarse.brightness import draw_sample, estimate_delta
+from probeless.coarse.brightness import DEADBAND, apply_deadband, draw_sample, estimate_delta
 from probeless.coarse.frames import FisheyeFrame, FrameSource
 from probeless.coarse.model import CoarseConfig, CoarseModel
 from probeless.progress import progress
@@ -33,7 +33,7 @@ class FrameRecord:
 
 def run_coarse(source: FrameSource, config: CoarseConfig, *, use_delta: bool = True, samples: int = 65536,
                on_frame: Callable[[CoarseModel, FisheyeFrame, FrameRecord], None] | None = None,
-               show_progress: bool = True, model: CoarseModel | None = None) -> tuple[CoarseModel, list[FrameRecord]]:
+               deadband: float = DEADBAND, show_progress: bool = True, model: CoarseModel | None = None) -> tuple[CoarseModel, list[FrameRecord]]:
     """Texture the room from every frame of ``source``; ``on_frame`` sees the model after each one."""
     ctx = source.rig.renderer.ctx if source.rig is not None else None
     model = model or CoarseModel(source.floorplan, source.ceiling_height, config, ctx=ctx)
@@ -48,6 +48,7 @@ def run_coarse(source: FrameSource, config: CoarseConfig, *, use_delta: bool = T
                 delta, used = estimate_delta(packed[..., :3], packed[..., 3] > 0, model.texmap, frame.image,
                                              source.model, frame.world_from_fisheye, config.fov_deg,
                                              source.floorplan, sample_idx=sample)
+                delta = apply_deadband(delta, deadband)
                 t_delta = (time.perf_counter() - t0) * 1e3
             inpainted = model.step(frame.image, source.model, frame.world_from_fisheye, delta, frame.t_s)
             timings = {k: v[-1] for k, v in model.timings_ms.items() if v}

@@ -1,0 +1,116 @@
+"""Baseline environment-map node (paper §5.3): a drop-in swap for the cubemap renderer.
+
+Each undistorted fisheye frame and its pose (same stamp) are pasted into one accumulating cubemap,
+rotation only (see :mod:`probeless.envmap.baseline`). The map ignores translation, so every object
+gets the same faces; the object's position only labels the message. Objects as in the cubemap
+renderer: ``object_ids`` / ``object_positions`` params, and an ``object_poses`` PoseStamped whose
+``child_frame_id`` is an object id moves it (an unknown id adds one). Outputs ``envmap/<id>``
+(``Cubemap``, ``linear = False``: camera LDR, uint8 0..255 or float 0..1) under the cubemap
+renderer's names, with its ``object_*`` and ``face_size`` / ``dtype`` params, so consumers need no change.
+Its inputs are the fisheye's, not the atlas: swapping the renderer for it changes the ``node:`` line and
+the ``inputs:`` block of that one graph entry (see launch/baseline.yaml).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+from probeless.messages.geometry import PoseStamped
+from probeless.messages.header import Header
+from probeless.messages.lighting import Cubemap
+from probeless.messages.sensor import CameraInfo, Image
+
+from probeless.cameras import model_from_info
+from probeless.envmap.baseline import BaselineEnvmap as BaselineMap
+from probeless.errors import ParamError
+from probeless.runtime import Node, param
+from probeless.runtime.sync import ExactTimeSync
+
+
+def parse_objects(ids: tuple, positions: tuple, node_id: str) -> dict[str, np.ndarray]:
+    """{id: position (3,) float64} of the ``object_ids`` / ``object_positions`` params (as the cubemap renderer's)."""
+    if len(ids) != len(positions):
+        raise ParamError(f"{len(ids)} object_ids but {len(positions)} object_positions: need one [x, y, z] per id",
+                         node_id=node_id, key="object_positions")
+    out: dict[str, np.ndarray] = {}
+    for i, (oid, pos) in enumerate(zip(ids, positions)):
+        if not oid or "/" in oid or oid in out:
+            raise ParamError(f"object_ids[{i}]: must be unique, non-empty and without '/', got {oid!r}",
+                             node_id=node_id, key="object_ids")
+        xyz = np.asarray(pos, np.float64)
+        if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
+            raise ParamError(f"object_positions[{i}]: need 3 finite numbers [m, world], got {list(pos)!r}",
+                             node_id=node_id, key="object_positions")
+        out[oid] = xyz
+    return out
+
+
+class BaselineEnvmap(Node):
+    """``fisheye`` + ``fisheye_pose`` (+ ``camera_info``) -> ``envmap/<id>`` for every object."""
+
+    INPUTS = {"fisheye": Image, "fisheye_pose": PoseStamped, "camera_info": CameraInfo, "object_poses": PoseStamped}
+    OUTPUTS = {"envmap/*": Cubemap}
+
+    @dataclass(frozen=True)
+    class Params:
+        object_ids: tuple[str, ...] = param((), doc="virtual objects to publish an environment map for")
+        object_positions: tuple[tuple[float, ...], ...] = param((), doc="[x, y, z] per object id [m, world]; only "
+                                                                         "labels the message")
+        face_size: int = param(256, min=1, max=4096, doc="cubemap face size [texels]")
+        fov_deg: float = param(183.0, min=1.0, max=359.0, doc="directions beyond fov/2 off the fisheye axis are "
+                                                               "not written [deg]")
+        publish_every: int = param(1, min=1, max=100000, doc="publish the maps every n-th frame [count]")
+        dtype: str = param("uint8", choices=("uint8", "float16", "float32"), doc="face type: uint8 0..255 or "
+                                                                                 "float 0..1 (camera LDR)")
+        alpha: bool = param(False, doc="add an alpha channel: 255 (1.0) where observed, 0 never observed")
+
+    def setup(self) -> None:
+        p = self.params
+        self.objects = parse_objects(p.object_ids, p.object_positions, self.ctx.node_id)
+        self.sync = ExactTimeSync(["fisheye", "fisheye_pose"], self._on_pair, on_unmatched=self._unmatched)
+        self.map: BaselineMap | None = None
+        self.counts: Counter[str] = Counter()
+
+    def on_input(self, name: str, msg) -> None:
+        if name == "camera_info":
+            model = model_from_info(msg)
+            if self.map is None:
+                self.map = BaselineMap(self.params.face_size, model, self.params.fov_deg)
+            else:
+                self.map.model = model  # the direction table does not depend on the camera
+        elif name == "object_poses":
+            T = msg.target_from_source
+            if np.isfinite(T).all():
+                self.objects[msg.child_frame_id] = T[:3, 3].astype(np.float64)
+            else:
+                self.counts["bad_object_pose"] += 1
+        else:
+            self.sync.add(name, msg)
+
+    def _unmatched(self, name: str, msg, reason: str) -> None:
+        self.counts[f"unpaired_{name}:{reason}"] += 1
+
+    def _on_pair(self, msgs: dict) -> None:
+        if self.map is None:
+            self.counts["no_camera_info"] += 1
+            return
+        img, pose = msgs["fisheye"], msgs["fisheye_pose"]
+        with self.ctx.timed("update"):
+            self.map.update(img.data, pose.target_from_source)
+        self.counts["applied"] += 1
+        if self.map.frames % self.params.publish_every == 0:
+            self._publish(Header(img.header.stamp_ns, "world"))
+
+    def _publish(self, header: Header) -> None:
+        p = self.params
+        with self.ctx.timed("publish"):
+            faces = self.map.faces_as(p.dtype, p.alpha)  # shared by every object's message (read-only)
+            for oid, position in self.objects.items():
+                self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, position, faces, linear=False))
+
+    def close(self) -> None:
+        if hasattr(self, "sync"):
+            self.sync.flush()
+            self.ctx.log.info("baseline envmap: %s", dict(sorted(self.counts.items())))
