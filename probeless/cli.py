@@ -181,7 +181,11 @@ def build_parser() -> argparse.ArgumentParser:
     from probeless.tracking.eval_fisheye_cli import add_fisheye_eval
     from probeless.tracking.slam_cli import add_slam_parser
 
-    add_fisheye_eval(add_eval_parser(sub))
+    from probeless.envmap.eval_cli import add_envmap_eval
+
+    eval_parsers = add_eval_parser(sub)
+    add_fisheye_eval(eval_parsers)
+    add_envmap_eval(eval_parsers)
     add_slam_parser(sub)
 
     from probeless.coarse.cli import add_coarse_parser

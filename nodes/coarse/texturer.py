@@ -51,6 +51,7 @@ class CoarseTexturer(Node):
         atlas_every: int = param(1, min=0, max=100000, doc="publish the atlas every n-th frame; 0 = never")
         mask_every: int = param(10, min=0, max=100000, doc="publish observed/occlusion every n-th frame; 0 = never")
         inpaint: bool = param(True, doc="fill never-observed texels (OpenCV Telea, per surface)")
+        occlusion: bool = param(True, doc="false: ignore the room's self-occlusion (an ablation)")
         inpaint_scale: float = param(0.25, min=0.01, max=1.0, doc="inpainting resolution / atlas resolution")
         inpaint_min_new_texels: int = param(2000, min=1, max=10**9, doc="re-inpaint after this many newly "
                                                                         "observed texels [count]")
@@ -60,7 +61,7 @@ class CoarseTexturer(Node):
     def setup(self) -> None:
         p = self.params
         self.config = CoarseConfig(p.atlas_size, p.texels_per_m, p.fov_deg, p.inpaint, p.inpaint_scale,
-                                   p.inpaint_min_new_texels)
+                                   p.inpaint_min_new_texels, occlusion=p.occlusion)
         self.sync = ExactTimeSync(["fisheye", "fisheye_pose"], self._on_pair, on_unmatched=self._unmatched)
         self.model: CoarseModel | None = None
         self.camera = None

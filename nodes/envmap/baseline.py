@@ -7,8 +7,10 @@ renderer: ``object_ids`` / ``object_positions`` params, and an ``object_poses`` 
 ``child_frame_id`` is an object id moves it (an unknown id adds one). Outputs ``envmap/<id>``
 (``Cubemap``, ``linear = False``: camera LDR, uint8 0..255 or float 0..1) under the cubemap
 renderer's names, with its ``object_*`` and ``face_size`` / ``dtype`` params, so consumers need no change.
-Its inputs are the fisheye's, not the atlas: swapping the renderer for it changes the ``node:`` line and
-the ``inputs:`` block of that one graph entry (see launch/baseline.yaml).
+It also publishes ``sh/<id>`` (SH of the map linearised with the sRGB curve, as the renderer does) and
+accepts the renderer's inputs (``floorplan``, ``atlas``, ``points``, ``dense_mesh``, ``delta``, ignored,
+counted), and the renderer accepts the fisheye inputs: an envmap node wired with both sets swaps
+with a one-line ``node:`` change (``launch/probeless.yaml``'s ``envmap_node`` arg; ``launch/baseline.yaml``).
 """
 
 from __future__ import annotations
@@ -17,16 +19,19 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
-from probeless.messages.geometry import PoseStamped
-from probeless.messages.header import Header
-from probeless.messages.lighting import Cubemap
-from probeless.messages.sensor import CameraInfo, Image
 
 from probeless.cameras import model_from_info
 from probeless.envmap.baseline import BaselineEnvmap as BaselineMap
+from probeless.envmap.sh import project_cubemap
 from probeless.errors import ParamError
+from probeless.messages.geometry import Floorplan, PoseStamped
+from probeless.messages.header import Header
+from probeless.messages.lighting import BrightnessDelta, Cubemap, SHCoefficients
+from probeless.messages.mesh import PointCloud, TriangleMesh
+from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ExactTimeSync
+from probeless.scene.build import srgb_to_linear
 
 
 def parse_objects(ids: tuple, positions: tuple, node_id: str) -> dict[str, np.ndarray]:
@@ -50,8 +55,12 @@ def parse_objects(ids: tuple, positions: tuple, node_id: str) -> dict[str, np.nd
 class BaselineEnvmap(Node):
     """``fisheye`` + ``fisheye_pose`` (+ ``camera_info``) -> ``envmap/<id>`` for every object."""
 
-    INPUTS = {"fisheye": Image, "fisheye_pose": PoseStamped, "camera_info": CameraInfo, "object_poses": PoseStamped}
-    OUTPUTS = {"envmap/*": Cubemap}
+    INPUTS = {"fisheye": Image, "fisheye_pose": PoseStamped, "camera_info": CameraInfo, "object_poses": PoseStamped,
+              # the cubemap renderer's inputs, accepted so the two nodes swap by their node: line alone
+              "floorplan": Floorplan, "atlas": Image, "points": PointCloud, "dense_mesh": TriangleMesh,
+              "delta": BrightnessDelta}
+    IGNORED = ("floorplan", "atlas", "points", "dense_mesh", "delta")
+    OUTPUTS = {"envmap/*": Cubemap, "sh/*": SHCoefficients}
 
     @dataclass(frozen=True)
     class Params:
@@ -74,7 +83,9 @@ class BaselineEnvmap(Node):
         self.counts: Counter[str] = Counter()
 
     def on_input(self, name: str, msg) -> None:
-        if name == "camera_info":
+        if name in self.IGNORED:
+            self.counts[f"ignored:{name}"] += 1
+        elif name == "camera_info":
             model = model_from_info(msg)
             if self.map is None:
                 self.map = BaselineMap(self.params.face_size, model, self.params.fov_deg)
@@ -107,8 +118,10 @@ class BaselineEnvmap(Node):
         p = self.params
         with self.ctx.timed("publish"):
             faces = self.map.faces_as(p.dtype, p.alpha)  # shared by every object's message (read-only)
+            coeffs = project_cubemap(srgb_to_linear(np.clip(self.map.faces, 0, 1)), 5).astype(np.float32)
             for oid, position in self.objects.items():
                 self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, position, faces, linear=False))
+                self.ctx.publish(f"sh/{oid}", SHCoefficients(header, oid, 5, coeffs))
 
     def close(self) -> None:
         if hasattr(self, "sync"):

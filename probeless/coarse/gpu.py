@@ -48,11 +48,12 @@ class AtlasTexturer:
     """The coarse model's texture atlas on the GPU and the passes that update it."""
 
     def __init__(self, layout: AtlasLayout, texmap: TexelMap, *, fov_deg: float = 180.0,
-                 ctx: moderngl.Context | None = None, occlusion_offset_texels: float = 1.5):
+                 ctx: moderngl.Context | None = None, occlusion_offset_texels: float = 1.5, occlusion: bool = True):
         self.layout, self.texmap = layout, texmap
         self.ctx = ctx or create_context()
         self.cos_half_fov = float(np.cos(np.radians(fov_deg) / 2))
         self.convex = is_convex(layout.floorplan)
+        self.skip_occlusion = self.convex or not occlusion  # occlusion=False: the ablation "no occlusion handling"
         self.offset_m = occlusion_offset_texels / layout.texels_per_m
         ctx, size = self.ctx, (layout.width, layout.height)
         pos = np.concatenate([texmap.position, texmap.surface[..., None].astype(np.float32)], axis=2)
@@ -87,7 +88,7 @@ class AtlasTexturer:
     @current_context
     def occlusion(self, viewpoint_xy: np.ndarray) -> None:
         """Atlas-space visibility from ``viewpoint_xy`` (the fisheye's floor position) [m, world]."""
-        if self.convex:
+        if self.skip_occlusion:
             return  # the mask was cleared to "visible" once; a convex prism cannot occlude itself
         poly = visibility_polygon(self.layout.floorplan, np.asarray(viewpoint_xy, np.float64))
         fan = np.concatenate([np.asarray(viewpoint_xy, np.float64)[None], poly, poly[:1]]).astype("f4")

@@ -32,6 +32,7 @@ class CoarseConfig:
     inpaint_min_new_texels: int = 2000  # re-inpaint once this many texels were newly observed [count]
     inpaint_every: int = 10       # ... and at least this many frames after the last run [frames]
     occlusion_offset_texels: float = 1.5  # wall texels are tested this far inside the room [texels]
+    occlusion: bool = True        # False: ignore self-occlusion of non-convex rooms (an ablation)
 
 
 def make_layout(floorplan: np.ndarray, ceiling_height: float, config: CoarseConfig) -> AtlasLayout:
@@ -50,7 +51,8 @@ class CoarseModel:
         self.layout = layout or make_layout(floorplan, ceiling_height, config)
         self.texmap = texmap or texel_map(self.layout)
         self.gpu = AtlasTexturer(self.layout, self.texmap, fov_deg=config.fov_deg, ctx=ctx,
-                                 occlusion_offset_texels=config.occlusion_offset_texels)
+                                 occlusion_offset_texels=config.occlusion_offset_texels,
+                                 occlusion=config.occlusion)
         self.inpainter = IncrementalInpainter(self.layout, self.texmap, min_new_texels=config.inpaint_min_new_texels,
                                               scale=config.inpaint_scale) if config.inpaint else None
         self.frames = 0

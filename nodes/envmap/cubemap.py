@@ -1,0 +1,211 @@
+"""Cubemap renderer node (paper §4.7): an environment map + its SH projection per virtual object.
+
+Renders when a new ``atlas`` arrives (at most ``max_rate_hz``; an atlas arriving sooner is rendered
+by a timer once the interval is over): for each object, the textured coarse model, then the
+newest dense model (``points`` or ``dense_mesh``) on top without depth testing, with the brightness
+changes ``delta`` that came after that model (summed) added to its colours, as the texturer adds
+them to texels out of view; other objects as flat spheres when
+``draw_objects``. The atlas layout comes from ``floorplan`` + ``atlas_size`` / ``texels_per_m``
+exactly as in the texturer (:func:`probeless.coarse.model.make_layout`).
+
+Objects: ``object_ids`` / ``object_positions`` params; an ``object_poses`` PoseStamped whose
+``child_frame_id`` is an object id moves it (an unknown id adds an object).
+
+Outputs per object ``<id>``: ``envmap/<id>`` (Cubemap, ``linear = False``: camera LDR units,
+sRGB-encoded like the fisheye image; uint8 or float16; ``mip_levels - 1`` box-filtered mips with
+roughness i / (mip_levels - 1)) and ``sh/<id>`` (SHCoefficients of the map linearised with the
+sRGB curve: "linear camera units" = radiance x exposure, clipped at 1 - what a renderer that
+re-encodes to the camera's sRGB needs). Stamps are the atlas's.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from probeless.coarse.model import CoarseConfig, make_layout
+from probeless.envmap.cubemap import EnvmapRenderer, prefilter
+from probeless.envmap.sh import project_cubemap
+from probeless.errors import ProbelessError
+from probeless.messages.geometry import Floorplan, PoseStamped
+from probeless.messages.header import Header
+from probeless.messages.lighting import BrightnessDelta, Cubemap, CubemapLevel, SHCoefficients
+from probeless.messages.mesh import PointCloud, TriangleMesh
+from probeless.messages.sensor import CameraInfo, Image
+from probeless.runtime import Node, param
+from probeless.scene.build import srgb_to_linear
+from probeless.scene.rig import linear_to_srgb
+
+
+def to_ldr(colors: np.ndarray) -> np.ndarray:
+    """Message colours (uint8 sRGB, or float linear 0..1) as camera LDR 0..1 float32."""
+    c = np.asarray(colors)
+    return c.astype(np.float32) / 255.0 if c.dtype == np.uint8 else linear_to_srgb(c).astype(np.float32)
+
+
+class CubemapRenderer(Node):
+    """``floorplan`` + ``atlas`` (+ ``points`` | ``dense_mesh``, ``delta``, ``object_poses``) -> ``envmap/*``, ``sh/*``."""
+
+    INPUTS = {"floorplan": Floorplan, "atlas": Image, "points": PointCloud, "dense_mesh": TriangleMesh,
+              "delta": BrightnessDelta, "object_poses": PoseStamped,
+              # the baseline's inputs, accepted (ignored) so the two nodes swap by their node: line alone
+              "fisheye": Image, "fisheye_pose": PoseStamped, "camera_info": CameraInfo}
+    IGNORED = ("fisheye", "fisheye_pose", "camera_info")
+    OUTPUTS = {"envmap/*": Cubemap, "sh/*": SHCoefficients}
+
+    @dataclass(frozen=True)
+    class Params:
+        atlas_size: int = param(0, min=0, max=16384, doc="atlas side when texels_per_m is 0 [texels] (as the "
+                                                         "texturer's); 0 = the width of the atlas images received")
+        texels_per_m: float = param(0.0, min=0.0, max=10000.0, doc="texel density; 0 = fit atlas_size [texels/m] (as the texturer's)")
+        object_ids: tuple[str, ...] = param((), doc="virtual objects to render an environment map for")
+        object_positions: tuple[tuple[float, ...], ...] = param((), doc="[x, y, z] per object id [m, world]")
+        face_size: int = param(256, min=4, max=4096, doc="cube face side [texels]")
+        dense: bool = param(True, doc="render the dense model on top of the coarse one (false: the 'no dense' ablation)")
+        splat_m: float = param(0.02, min=0.0, max=1.0, doc="world diameter of a point splat, about the point spacing [m]")
+        max_splat_px: float = param(64.0, min=1.0, max=255.0, doc="largest splat [px]")
+        draw_objects: bool = param(False, doc="draw the other virtual objects as flat spheres into each map")
+        object_radius: float = param(0.1, min=0.0, max=10.0, doc="sphere radius of other objects [m]")
+        object_color: tuple[float, ...] = param((0.8, 0.8, 0.8), doc="sphere colour of other objects [camera LDR 0..1]")
+        mip_levels: int = param(6, min=1, max=12, doc="levels incl. the base; face_size must divide by 2^(levels-1)")
+        sh_bands: int = param(5, min=1, max=8, doc="SH bands of the sh/* output (5 = 25 coefficients, the paper's)")
+        dtype: str = param("uint8", choices=("uint8", "float16"), doc="face sample type")
+        max_rate_hz: float = param(0.0, min=0.0, max=1000.0, doc="render at most this often; 0 = every atlas [Hz]")
+
+    def setup(self) -> None:
+        p = self.params
+        if len(p.object_ids) != len(p.object_positions) or any(len(x) != 3 for x in p.object_positions):
+            raise ProbelessError(f"cubemap_renderer: object_ids ({len(p.object_ids)}) and object_positions "
+                                 f"({len(p.object_positions)}) need one [x, y, z] per id")
+        if p.face_size % (1 << (p.mip_levels - 1)):
+            raise ProbelessError(f"cubemap_renderer: face_size {p.face_size} is not divisible by 2^(mip_levels-1) "
+                                 f"= {1 << (p.mip_levels - 1)}")
+        self.objects = {i: np.asarray(x, np.float64) for i, x in zip(p.object_ids, p.object_positions)}
+        self.renderer: EnvmapRenderer | None = None
+        self.floorplan: Floorplan | None = None
+        self.atlas: Image | None = None
+        self.delta = np.zeros(3, np.float32)
+        self.dense_msg: PointCloud | TriangleMesh | None = None
+        self.dense_dirty = False
+        self.pending = False
+        self.last_render_ns: int | None = None
+        self.counts: Counter[str] = Counter()
+        self.logged: set[str] = set()
+        if p.max_rate_hz > 0:
+            self.ctx.create_timer(min(0.05, 0.25 / p.max_rate_hz), self._maybe_render, name="render")
+
+    def on_input(self, name: str, msg) -> None:
+        if name in self.IGNORED:
+            return
+        if name == "floorplan":
+            self._on_floorplan(msg)
+        elif name == "atlas":
+            self.atlas, self.pending = msg, True
+        elif name in ("points", "dense_mesh"):
+            self._set_dense(msg)
+        elif name == "delta":
+            if msg.sampled and self.dense_msg is not None and msg.header.stamp_ns > self.dense_msg.header.stamp_ns:
+                self.delta = self.delta + np.asarray(msg.delta, np.float32)
+        elif name == "object_poses":
+            T = msg.target_from_source
+            if np.isfinite(T).all():
+                self.objects[msg.child_frame_id] = T[:3, 3].astype(np.float64)
+            else:
+                self.counts["bad_object_pose"] += 1
+        self._maybe_render()
+
+    def _on_floorplan(self, msg: Floorplan) -> None:
+        if self.floorplan is not None and np.array_equal(msg.vertices, self.floorplan.vertices) \
+                and msg.ceiling_height == self.floorplan.ceiling_height:
+            return
+        self.floorplan = msg
+        if self.renderer is not None:
+            self.renderer.release()
+            self.renderer = None  # rebuilt for the new room at the next render
+
+    def _make_renderer(self) -> bool:
+        """Build the renderer for the floorplan and the atlas size (param, or the received atlas's width)."""
+        p, msg = self.params, self.floorplan
+        size = p.atlas_size or self.atlas.data.shape[1]
+        try:
+            layout = make_layout(msg.vertices, msg.ceiling_height, CoarseConfig(size, p.texels_per_m))
+        except ProbelessError as exc:
+            self.counts["bad_floorplan"] += 1
+            self._once("floorplan", f"floorplan rejected: {exc}")
+            return False
+        self.renderer = EnvmapRenderer(layout)
+        self.dense_dirty = self.dense_msg is not None
+        return True
+
+    def _set_dense(self, msg: PointCloud | TriangleMesh) -> None:
+        if msg.header.frame_id != "world":
+            self._once("dense_frame", f"dense model in frame '{msg.header.frame_id}', expected 'world': ignored")
+            self.counts["dense_wrong_frame"] += 1
+            return
+        self.dense_msg, self.dense_dirty = msg, True
+        self.delta = np.zeros(3, np.float32)  # the new model's colours are as of its stamp
+
+    def _upload_dense(self) -> None:
+        """Hand the newest dense model (points or mesh, whichever came last) to the renderer."""
+        m, self.dense_dirty = self.dense_msg, False
+        with self.ctx.timed("upload_dense"):
+            if isinstance(m, PointCloud):
+                self.renderer.set_dense(m.points, to_ldr(m.colors))
+            else:
+                self.renderer.set_dense_mesh(m.vertices, m.triangles, to_ldr(m.vertex_colors))
+
+    def _maybe_render(self) -> None:
+        if not self.pending or self.floorplan is None or self.atlas is None:
+            return
+        if self.renderer is None and not self._make_renderer():
+            return
+        now, rate = self.ctx.now_ns(), self.params.max_rate_hz
+        if rate > 0 and self.last_render_ns is not None and now - self.last_render_ns < 1e9 / rate:
+            return
+        if self.dense_dirty and self.params.dense:
+            self._upload_dense()
+        self.pending, self.last_render_ns = False, now
+        try:
+            with self.ctx.timed("upload_atlas"):
+                self.renderer.set_atlas(self.atlas.data)
+        except ProbelessError as exc:
+            self._once("atlas", f"atlas rejected: {exc} (give the texturer and this node the same atlas params)")
+            self.counts["atlas_rejected"] += 1
+            return
+        for oid, pos in self.objects.items():
+            self._render_object(oid, pos)
+
+    def _render_object(self, oid: str, pos: np.ndarray) -> None:
+        p = self.params
+        spheres = [(x, p.object_radius, p.object_color) for o, x in self.objects.items()
+                   if o != oid and p.draw_objects]
+        with self.ctx.timed("cubemap"):
+            faces = self.renderer.render(pos, p.face_size, self.delta, dense=p.dense, splat_m=p.splat_m,
+                                         max_splat_px=p.max_splat_px, spheres=spheres)
+        with self.ctx.timed("sh_projection"):
+            coeffs = project_cubemap(srgb_to_linear(np.clip(faces, 0, 1)), p.sh_bands)
+        with self.ctx.timed("mips"):
+            levels = prefilter(faces, p.mip_levels)
+        header = Header(self.atlas.header.stamp_ns, "world")
+        enc = self._encode
+        mips = tuple(CubemapLevel(r, enc(f)) for r, f in levels[1:])
+        self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, pos.copy(), enc(faces), mips, linear=False))
+        self.ctx.publish(f"sh/{oid}", SHCoefficients(header, oid, p.sh_bands, coeffs.astype(np.float32)))
+        self.counts["rendered"] += 1
+
+    def _encode(self, faces: np.ndarray) -> np.ndarray:
+        f = np.clip(faces, 0.0, 1.0)
+        return (f * 255.0 + 0.5).astype(np.uint8) if self.params.dtype == "uint8" else f.astype(np.float16)
+
+    def _once(self, key: str, text: str) -> None:
+        if key not in self.logged:
+            self.logged.add(key)
+            self.ctx.log.error("%s", text)
+
+    def close(self) -> None:
+        if getattr(self, "renderer", None) is not None:
+            self.renderer.release()
+        if hasattr(self, "counts"):
+            self.ctx.log.info("cubemap renderer: %s", dict(sorted(self.counts.items())))

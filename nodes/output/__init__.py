@@ -1,0 +1,1 @@
+"""Output nodes: write images to an MP4 video or to PNG files."""

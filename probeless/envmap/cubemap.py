@@ -1,0 +1,220 @@
+"""Environment cubemaps seen from a virtual object (paper §4.7): textured coarse model, dense model on top.
+
+Pass 1 renders the textured prism with depth testing. Pass 2 clears the depth buffer and renders
+the dense model (points as round splats whose size falls with distance, or a vertex-coloured
+mesh) plus any other virtual objects (flat-coloured spheres), depth-tested only among themselves:
+the dense model lands *on top of* the coarse model regardless of depth, the paper's choice (it is
+nearer and more detailed, and replaces walls it also captured). The brightness change Δ is added to
+the dense colours only (the atlas already has it baked in by the texturer).
+
+All colours are camera LDR units 0..1 (sRGB-encoded camera output / 255), as in the atlas. Faces
+follow :mod:`probeless.messages.lighting` (framebuffer texel (row, col) is cube texel [face, row, col]).
+Known limit: other virtual objects are drawn over the coarse model too, so a wall never hides one
+(exact in convex rooms).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from probeless.coarse.atlas import AtlasLayout
+from probeless.coarse.texels import coarse_mesh
+from probeless.errors import ProbelessError
+from probeless.scene.gl import create_context, cube_face_clip_from_world, current_context, load_program, mat_bytes
+
+SHADERS = Path(__file__).with_name("shaders")
+NEAR_M = 0.01
+
+
+def unit_sphere(rings: int = 16, segments: int = 32) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3) f32, triangles (T, 3) i32) of a UV sphere of radius 1."""
+    th = np.linspace(0, np.pi, rings + 1)
+    ph = np.linspace(0, 2 * np.pi, segments + 1)
+    t, p = np.meshgrid(th, ph, indexing="ij")
+    v = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
+    i, j = np.mgrid[0:rings, 0:segments]
+    a = (i * (segments + 1) + j).ravel()
+    b, c, d = a + segments + 1, a + 1, a + segments + 2
+    return v.astype("f4"), np.concatenate([np.stack([a, b, c], 1), np.stack([c, b, d], 1)]).astype("i4")
+
+
+def ldr_colors(colors: np.ndarray, what: str) -> np.ndarray:
+    """(N, 3) float32 camera LDR 0..1 from uint8 0..255 or float 0..1 colours."""
+    c = np.asarray(colors)
+    if c.ndim != 2 or c.shape[1] != 3:
+        raise ProbelessError(f"{what}: colours must be (N, 3), got {c.shape}")
+    return c.astype("f4") / 255.0 if c.dtype == np.uint8 else c.astype("f4")
+
+
+def prefilter(faces: np.ndarray, levels: int) -> list[tuple[float, np.ndarray]]:
+    """Mip chain of cubemap ``faces`` (6, S, S, C): [(roughness = i / (levels - 1), faces of side S >> i)].
+
+    Each level is the 2x2 box average of the previous one (the paper samples coarser mip levels for
+    rough metals). Level 0 is ``faces`` itself.
+    """
+    f = np.asarray(faces, np.float32)
+    size = f.shape[1]
+    if levels < 1 or size >> (levels - 1) < 1 or size % (1 << (levels - 1)):
+        raise ProbelessError(f"prefilter: {levels} levels do not divide a {size}-texel face")
+    out = [(0.0, f)]
+    for i in range(1, levels):
+        s = f.shape[1] // 2
+        f = f.reshape(6, s, 2, s, 2, -1).mean(axis=(2, 4))
+        out.append((i / (levels - 1), f))
+    return out
+
+
+class EnvmapRenderer:
+    """Renders (6, S, S, 3) camera-LDR cubemaps from the textured coarse model, a dense model and spheres."""
+
+    def __init__(self, layout: AtlasLayout, *, ctx: moderngl.Context | None = None):
+        self.ctx = ctx or create_context()
+        self.layout = layout
+        v, t, uv, _ = coarse_mesh(layout)
+        self.coarse_prog = load_program(self.ctx, "cube_coarse", shader_dir=SHADERS)
+        self.dense_prog = load_program(self.ctx, "cube_dense", shader_dir=SHADERS)
+        self.flat_prog = load_program(self.ctx, "cube_flat", shader_dir=SHADERS)
+        self._buffers = [self.ctx.buffer(np.hstack([v, uv]).astype("f4").tobytes()),
+                         self.ctx.buffer(np.asarray(t, "i4").tobytes())]
+        self.coarse_vao = self.ctx.vertex_array(self.coarse_prog, [(self._buffers[0], "3f 2f", "in_position", "in_uv")],
+                                                index_buffer=self._buffers[1])
+        sv, st = unit_sphere()
+        self._sphere = [self.ctx.buffer(sv.tobytes()), self.ctx.buffer(st.tobytes())]
+        self.sphere_vao = self.ctx.vertex_array(self.flat_prog, [(self._sphere[0], "3f", "in_position")],
+                                                index_buffer=self._sphere[1])
+        lo, hi = layout.floorplan.min(axis=0), layout.floorplan.max(axis=0)
+        self.far = 2.0 * (float(np.linalg.norm(hi - lo)) + layout.ceiling_height) + 10.0
+        self.layout_padding = 2  # layout_atlas's default ring of texels around every rectangle
+        self.atlas_tex = None
+        self.dense = None  # (vao, buffers, mode)
+        self._fbos: dict[int, moderngl.Framebuffer] = {}
+
+    @current_context
+    def set_atlas(self, atlas: np.ndarray) -> None:
+        """Upload the atlas image (H, W, 3|4) uint8 (or float 0..1), row 0 = top; alpha is ignored."""
+        img = np.asarray(atlas)
+        want = (self.layout.height, self.layout.width)
+        if img.ndim != 3 or img.shape[:2] != want or img.shape[2] not in (3, 4):
+            raise ProbelessError(f"EnvmapRenderer.set_atlas: atlas is {img.shape}, the layout needs {want + (3,)} "
+                                 f"or {want + (4,)}")
+        if img.dtype != np.uint8:
+            img = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
+        data = np.ascontiguousarray(img[::-1, :, :3]).tobytes()
+        if self.atlas_tex is None:
+            self.atlas_tex = self.ctx.texture((want[1], want[0]), 3, data)
+            self.atlas_tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        else:
+            self.atlas_tex.write(data)
+        # mip levels beyond the padding ring would blend neighbouring surfaces' rectangles
+        self.atlas_tex.build_mipmaps(0, max(0, int(np.log2(max(1, self.layout_padding)))))
+
+    @current_context
+    def set_dense(self, points: np.ndarray, colors: np.ndarray) -> None:
+        """Dense model as coloured points (N, 3) world [m]; colours uint8 0..255 or float 0..1 camera LDR."""
+        p = np.asarray(points, "f4")
+        if p.ndim != 2 or p.shape[1] != 3 or len(p) != len(colors):
+            raise ProbelessError(f"EnvmapRenderer.set_dense: points {p.shape} and colours {np.shape(colors)} "
+                                 f"must be (N, 3) each")
+        self._set_dense(p, ldr_colors(colors, "set_dense"), None, moderngl.POINTS)
+
+    @current_context
+    def set_dense_mesh(self, vertices: np.ndarray, triangles: np.ndarray, vertex_colors: np.ndarray) -> None:
+        """Dense model as a vertex-coloured triangle mesh (colours as in :meth:`set_dense`)."""
+        v, t = np.asarray(vertices, "f4"), np.asarray(triangles, "i4")
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) != len(vertex_colors) or t.ndim != 2 or t.shape[1] != 3:
+            raise ProbelessError(f"EnvmapRenderer.set_dense_mesh: vertices {v.shape}, colours "
+                                 f"{np.shape(vertex_colors)}, triangles {t.shape}")
+        self._set_dense(v, ldr_colors(vertex_colors, "set_dense_mesh"), t, moderngl.TRIANGLES)
+
+    def _set_dense(self, p, c, tris, mode) -> None:
+        self.clear_dense()
+        if len(p) == 0 or (tris is not None and len(tris) == 0):
+            return
+        bufs = [self.ctx.buffer(np.hstack([p, c]).astype("f4").tobytes())]
+        if tris is not None:
+            bufs.append(self.ctx.buffer(tris.tobytes()))
+        vao = self.ctx.vertex_array(self.dense_prog, [(bufs[0], "3f 3f", "in_position", "in_color")],
+                                    index_buffer=bufs[1] if tris is not None else None)
+        self.dense = (vao, bufs, mode)
+
+    @current_context
+    def clear_dense(self) -> None:
+        """Forget the dense model."""
+        if self.dense is not None:
+            self.dense[0].release()
+            for b in self.dense[1]:
+                b.release()
+        self.dense = None
+
+    def _fbo(self, size: int) -> moderngl.Framebuffer:
+        if size not in self._fbos:
+            color = self.ctx.texture((size, size), 4, dtype="f4")
+            self._fbos[size] = self.ctx.framebuffer([color], self.ctx.depth_renderbuffer((size, size)))
+        return self._fbos[size]
+
+    @current_context
+    def render(self, position, size: int = 256, delta=(0.0, 0.0, 0.0), dense: bool = True, splat_m: float = 0.02,
+               max_splat_px: float = 64.0, spheres=(), finish: bool = True) -> np.ndarray:
+        """(6, S, S, 3) float32 camera-LDR cubemap at ``position`` (3,) world [m].
+
+        ``splat_m``: world diameter of a point splat (about the dense model's point spacing) [m];
+        ``spheres``: other virtual objects as ``(centre (3,), radius [m], colour (3,) LDR 0..1)``.
+        """
+        if self.atlas_tex is None:
+            raise ProbelessError("EnvmapRenderer.render: no atlas yet (call set_atlas first)")
+        pos = np.asarray(position, np.float64)
+        if pos.shape != (3,) or not np.isfinite(pos).all():
+            raise ProbelessError(f"EnvmapRenderer.render: position must be 3 finite numbers, got {position!r}")
+        fbo = self._fbo(size)
+        fbo.use()
+        ctx = self.ctx
+        ctx.disable(moderngl.CULL_FACE)
+        ctx.enable(moderngl.PROGRAM_POINT_SIZE)
+        self.atlas_tex.use(0)
+        self.coarse_prog["atlas"] = 0
+        dp = self.dense_prog
+        for name, value in (("splat_px_m", splat_m * size / 2.0), ("max_px", float(max_splat_px)),
+                            ("delta", tuple(float(x) for x in delta))):
+            if name in dp:
+                dp[name] = value
+        out = np.empty((6, size, size, 3), np.float32)
+        for face, clip in enumerate(cube_face_clip_from_world(pos, size, NEAR_M, self.far)):
+            m = mat_bytes(clip)
+            fbo.clear(0.0, 0.0, 0.0, 1.0)
+            ctx.enable(moderngl.DEPTH_TEST)
+            self.coarse_prog["clip_from_world"].write(m)
+            self.coarse_vao.render(moderngl.TRIANGLES)
+            self._clear_depth(fbo)
+            if dense and self.dense is not None:
+                vao, _, mode = self.dense
+                dp["clip_from_world"].write(m)
+                if "round_splats" in dp:
+                    dp["round_splats"] = mode == moderngl.POINTS
+                vao.render(mode)
+            for centre, radius, color in spheres:
+                self.flat_prog["clip_from_world"].write(m)
+                self.flat_prog["sphere"] = (*map(float, centre), float(radius))
+                self.flat_prog["color"] = tuple(float(x) for x in color)
+                self.sphere_vao.render(moderngl.TRIANGLES)
+            out[face] = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(size, size, 4)[..., :3]
+        return out
+
+    def _clear_depth(self, fbo: moderngl.Framebuffer) -> None:
+        """Reset the depth buffer, keeping the colour (pass 2 ignores the coarse model's depth)."""
+        fbo.color_mask = (False, False, False, False)
+        fbo.clear(depth=1.0)
+        fbo.color_mask = (True, True, True, True)
+        fbo.use()  # moderngl applies the colour mask when the framebuffer is bound
+
+    @current_context
+    def release(self) -> None:
+        """Free the GL objects (not the context when it was passed in)."""
+        self.clear_dense()
+        for obj in [self.coarse_vao, self.sphere_vao, *self._buffers, *self._sphere, *self._fbos.values()]:
+            obj.release()
+        if self.atlas_tex is not None:
+            self.atlas_tex.release()
+        self._fbos.clear()

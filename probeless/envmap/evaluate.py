@@ -1,0 +1,222 @@
+"""``probeless eval envmap``: environment maps at the virtual objects against the rig's ground truth.
+
+One pass renders the scene's frames once (fisheye frames with their true poses, RGB-D frames for
+the dense model); then every method runs over the same frames in stamp order, as the graph's nodes
+would: Δ of frame k against the atlas after k-1, texture update, and every ``every`` fisheye
+frames a cubemap per object, compared with the true cubemap there (through the fisheye's exposure,
+so in the same camera LDR units). Methods (paper §5.3): ``ours``; ``baseline`` (the fisheye
+rotated into the map, translation ignored, never cleared) and ``baseline_dense`` (plus the dense
+model on top); ablations ``no_inpainting``, ``no_brightness``, ``no_dense``, ``no_occlusion``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from probeless.coarse.brightness import apply_deadband, draw_sample, estimate_delta
+from probeless.coarse.frames import FOV_MARGIN_DEG, runtime_model
+from probeless.coarse.model import CoarseConfig, CoarseModel
+from probeless.envmap import metrics as M
+from probeless.envmap.baseline import BaselineEnvmap
+from probeless.envmap.cubemap import EnvmapRenderer
+from probeless.envmap.dense_points import DensePoints
+from probeless.envmap.sh import project_cubemap
+from probeless.progress import progress
+from probeless.scene.build import srgb_to_linear
+
+METHODS = ("ours", "baseline", "baseline_dense", "no_inpainting", "no_brightness", "no_dense", "no_occlusion")
+# coarse-model variant each method needs (None: the baseline map)
+VARIANT = {"ours": "full", "no_dense": "full", "no_inpainting": "no_inpainting", "no_brightness": "no_brightness",
+           "no_occlusion": "no_occlusion", "baseline": None, "baseline_dense": None}
+METRICS = ("envmap_psnr", "envmap_ssim", "coverage", "mirror_psnr", "diffuse_psnr", "sh_rel_error")
+
+
+@dataclass
+class Rendered:
+    """The scene's frames, rendered once for every method."""
+
+    scene: object
+    rig: object
+    model: object                       # runtime fisheye model
+    events: list                        # (kind, t, stamp_ns, payload) in time order
+    eval_times: list[float]             # fisheye times at which maps are compared
+    truth: dict[tuple[str, float], np.ndarray] = field(default_factory=dict)  # (object, t) -> LDR faces
+
+
+def render_frames(scene_path, duration: float | None, *, stride: int, rgbd_stride: int, every: int,
+                  face_size: int, show_progress: bool) -> Rendered:
+    """Render fisheye and RGB-D frames, the true maps at the evaluation times, and the dense snapshots."""
+    from probeless.cameras.undistort import remap
+    from probeless.scene.parse import load_scene
+    from probeless.scene.rig import Rig, frame_schedule, linear_to_srgb
+
+    scene = load_scene(scene_path)
+    rig = Rig(scene, envmaps=False, envmap_size=face_size)
+    model, lut = runtime_model(rig.fisheye, scene.fisheye.fov_deg)
+    schedule = frame_schedule(scene, duration)
+    fish = [e for e in schedule if e.kind == "fisheye"][::max(1, stride)]
+    rgbd = [e for e in schedule if e.kind == "rgbd"][::max(1, rgbd_stride)]
+    chosen = sorted(fish + rgbd, key=lambda e: (e.t, e.kind != "rgbd"))
+    eval_times = [e.t for k, e in enumerate(fish) if k % every == 0 or k == len(fish) - 1]
+    objects = scene.virtual_objects
+    out = Rendered(scene, rig, model, [], eval_times)
+    with progress(len(chosen), f"render {scene.name}", enabled=show_progress) as tick:
+        for e in chosen:
+            if e.kind == "rgbd":
+                rgb, depth, pose = rig.render_rgbd(e)
+                out.events.append(("rgbd", e.t, e.stamp_ns, (rgb, depth.astype(np.float32) / 1000.0, pose)))
+            else:
+                image, pose = rig.render_fisheye(e)
+                out.events.append(("fisheye", e.t, e.stamp_ns, (image if lut is None else remap(image, lut), pose,
+                                                                 rig.light_scale(e.t))))
+                if e.t in eval_times:
+                    for o in objects:
+                        radiance = rig.render_envmap(o.position, e.t)
+                        out.truth[o.id, e.t] = linear_to_srgb(radiance * scene.fisheye.exposure).astype(np.float32)
+            tick()
+    return out
+
+
+@dataclass
+class MethodResult:
+    """Per object: metric -> series over the evaluation times."""
+
+    method: str
+    series: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    last_faces: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def add(self, obj: str, values: dict[str, float]) -> None:
+        per = self.series.setdefault(obj, {k: [] for k in METRICS})
+        for k, v in values.items():
+            per[k].append(float(v))
+
+    def means(self) -> dict[str, dict[str, float]]:
+        return {o: {k: float(np.nanmean(v)) if v else float("nan") for k, v in per.items()}
+                for o, per in self.series.items()}
+
+
+def score(est: np.ndarray, truth: np.ndarray, observed: np.ndarray) -> dict[str, float]:
+    """The metrics of one estimated LDR cubemap against the true one (module doc)."""
+    return {"envmap_psnr": M.envmap_psnr(est, truth), "envmap_ssim": M.envmap_ssim(est, truth),
+            "coverage": M.coverage(observed), "mirror_psnr": M.mirror_psnr(est, truth),
+            "diffuse_psnr": M.diffuse_psnr(est, truth),
+            "sh_rel_error": M.sh_rel_error(project_cubemap(srgb_to_linear(np.clip(est, 0, 1))),
+                                           project_cubemap(srgb_to_linear(np.clip(truth, 0, 1))))}
+
+
+def _coarse_config(variant: str, atlas_size: int, fov_deg: float) -> tuple[CoarseConfig, bool]:
+    config = CoarseConfig(atlas_size=atlas_size, fov_deg=fov_deg, inpaint=variant != "no_inpainting",
+                          occlusion=variant != "no_occlusion")
+    return config, variant != "no_brightness"
+
+
+def _dense_mask(renderer: EnvmapRenderer, points, position, size) -> np.ndarray:
+    """(6, S, S) bool: texels the dense model covers (rendered in white over a black room)."""
+    renderer.set_atlas(np.zeros((renderer.layout.height, renderer.layout.width, 3), np.uint8))
+    renderer.set_dense(points, np.full((len(points), 3), 255, np.uint8))
+    faces = renderer.render(position, size)
+    return faces.max(axis=3) > 0.5
+
+
+def run_variant(r: Rendered, variant: str, methods: list[str], *, atlas_size: int, face_size: int,
+                results: dict[str, MethodResult], show_progress: bool) -> None:
+    """One coarse-model run (or the baseline when ``variant`` is None) scoring every method that uses it."""
+    scene, ctx = r.scene, r.rig.renderer.ctx
+    fov = scene.fisheye.fov_deg - FOV_MARGIN_DEG
+    objects = scene.virtual_objects
+    dense = DensePoints(np.array([o.position for o in objects]))
+    delta_sum = np.zeros(3)
+    if variant is None:
+        base = BaselineEnvmap(face_size, r.model, fov)
+        coarse = None
+        renderer = EnvmapRenderer(_dummy_layout(scene), ctx=ctx)
+    else:
+        config, use_delta = _coarse_config(variant, atlas_size, fov)
+        coarse = CoarseModel(scene.floorplan, scene.ceiling_height, config, ctx=ctx)
+        sample = draw_sample(coarse.texmap, 65536, seed=0)
+        renderer = EnvmapRenderer(coarse.layout, ctx=ctx)
+    K = scene.rgbd.K
+    with progress(len(r.events), f"{variant or 'baseline'}", enabled=show_progress) as tick:
+        for kind, t, _, payload in r.events:
+            tick()
+            if kind == "rgbd":
+                rgb, depth, pose = payload
+                dense.add(rgb.astype(np.float64) - delta_sum * 255.0, depth, K, pose)
+                continue
+            image, pose, _ = payload
+            if coarse is None:
+                base.update(image, pose)
+            else:
+                delta = np.zeros(3, np.float32)
+                if use_delta and coarse.frames > 0:
+                    packed = coarse.gpu.read_packed()
+                    delta, _ = estimate_delta(packed[..., :3], packed[..., 3] > 0, coarse.texmap, image, r.model,
+                                              pose, fov, scene.floorplan, sample_idx=sample)
+                    delta = apply_deadband(delta)
+                coarse.step(image, r.model, pose, delta, t)
+                delta_sum += delta
+            if t in r.eval_times:
+                _score_step(r, t, coarse, base if coarse is None else None, renderer, dense, delta_sum, methods,
+                            face_size, results)
+    renderer.release()
+    if coarse is not None:
+        coarse.release()
+
+
+def _dummy_layout(scene):
+    from probeless.coarse.atlas import layout_atlas
+
+    return layout_atlas(scene.floorplan, scene.ceiling_height, 4.0)
+
+
+def _score_step(r, t, coarse, base, renderer, dense, delta_sum, methods, size, results) -> None:
+    points, colours = dense.points()
+    for o in r.scene.virtual_objects:
+        truth = r.truth[o.id, t]
+        pos = np.asarray(o.position, np.float64)
+        covered = _dense_mask(renderer, points, pos, size) if len(points) else np.zeros((6, size, size), bool)
+        if len(points):
+            renderer.set_dense(points, colours)
+        if coarse is not None:
+            packed = coarse.gpu.read_packed()
+            renderer.set_atlas(np.repeat(packed[..., 3:], 3, axis=2))
+            observed = renderer.render(pos, size, dense=False).max(axis=3) > 0.5
+            renderer.set_atlas(packed)
+            for m in methods:
+                with_dense = m != "no_dense" and len(points) > 0
+                est = renderer.render(pos, size, delta=delta_sum, dense=with_dense)
+                results[m].add(o.id, score(est, truth, observed | (covered if with_dense else False)))
+                results[m].last_faces[o.id] = est
+        else:
+            for m in methods:
+                est, observed = base.faces.copy(), base.observed.copy()
+                if m == "baseline_dense" and len(points):
+                    renderer.set_atlas(np.zeros((renderer.layout.height, renderer.layout.width, 3), np.uint8))
+                    on_top = renderer.render(pos, size, delta=delta_sum)
+                    est = np.where(covered[..., None], on_top, est)
+                    observed |= covered
+                results[m].add(o.id, score(est, truth, observed))
+                results[m].last_faces[o.id] = est
+
+
+def evaluate_envmaps(scene_path, *, duration: float | None = None, methods=METHODS, face_size: int = 64,
+                     atlas_size: int = 512, every: int = 3, stride: int = 1, rgbd_stride: int = 3,
+                     show_progress: bool = True) -> tuple[Rendered, dict[str, MethodResult]]:
+    """Score every method in ``methods`` on a scene (module doc)."""
+    unknown = set(methods) - set(METHODS)
+    if unknown:
+        from probeless.errors import ProbelessError
+
+        raise ProbelessError(f"unknown method(s) {sorted(unknown)}; choose from {', '.join(METHODS)}")
+    r = render_frames(scene_path, duration, stride=stride, rgbd_stride=rgbd_stride, every=every,
+                      face_size=face_size, show_progress=show_progress)
+    results = {m: MethodResult(m) for m in methods}
+    variants: dict[str | None, list[str]] = {}
+    for m in methods:
+        variants.setdefault(VARIANT[m], []).append(m)
+    for variant, ms in variants.items():
+        run_variant(r, variant, ms, atlas_size=atlas_size, face_size=face_size, results=results,
+                    show_progress=show_progress)
+    return r, results

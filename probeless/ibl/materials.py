@@ -1,0 +1,123 @@
+"""Materials of virtual objects, each a small frozen parameter set, and their combination.
+
+Every material reduces to one :class:`Shading`: a diffuse term (albedo times SH irradiance / pi, or
+shadowed PRT), one specular lobe (colour times the environment along the reflected ray, blurred by
+roughness) and a refraction term (tint times the environment along the refracted ray, mixed with
+the reflection by the exact dielectric Fresnel factor). Refraction is a single interface: the ray
+bends once entering the surface and then reads the environment; it does not exit through the back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from probeless.errors import SceneError
+
+RGB = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Mirror:
+    colour: RGB = (1.0, 1.0, 1.0)   # reflectance per channel [0..1]
+
+
+@dataclass(frozen=True)
+class Metal:
+    colour: RGB = (0.95, 0.64, 0.54)  # reflectance per channel (copper by default) [0..1]
+    roughness: float = 0.3            # perceptual roughness: 0 = mirror, 1 = coarsest mip [0..1]
+
+
+@dataclass(frozen=True)
+class Glass:
+    ior: float = 1.5                  # index of refraction (water 1.33) [-]
+    tint: RGB = (1.0, 1.0, 1.0)       # transmittance per channel [0..1]
+
+
+@dataclass(frozen=True)
+class Diffuse:
+    albedo: RGB = (0.8, 0.8, 0.8)     # Lambertian albedo per channel [0..1]
+    shadowed: bool = False            # True = per-vertex shadowed PRT (self-occlusion), else SH irradiance
+
+
+@dataclass(frozen=True)
+class Mix:
+    layers: tuple[tuple[float, Any], ...]  # (weight, material) pairs, summed
+
+
+@dataclass(frozen=True)
+class Shading:
+    """What the shader evaluates: ``kd * diffuse + ks * specular(roughness) + kt * transmission(ior)``."""
+
+    kd: np.ndarray = field(default_factory=lambda: np.zeros(3))  # diffuse albedo weight per channel
+    ks: np.ndarray = field(default_factory=lambda: np.zeros(3))  # specular reflectance per channel
+    kt: np.ndarray = field(default_factory=lambda: np.zeros(3))  # transmission tint per channel
+    roughness: float = 0.0
+    ior: float = 1.0
+    shadowed: bool = False
+
+
+def shading(material, weight: float = 1.0) -> Shading:
+    """The :class:`Shading` of a material (a :class:`Mix` sums its layers; one roughness and ior each)."""
+    if isinstance(material, Mirror):
+        return Shading(ks=weight * np.array(material.colour, float))
+    if isinstance(material, Metal):
+        return Shading(ks=weight * np.array(material.colour, float), roughness=material.roughness)
+    if isinstance(material, Glass):
+        return Shading(kt=weight * np.array(material.tint, float), ior=material.ior)
+    if isinstance(material, Diffuse):
+        return Shading(kd=weight * np.array(material.albedo, float), shadowed=material.shadowed)
+    if isinstance(material, Mix):
+        parts = [shading(m, weight * w) for w, m in material.layers]
+        spec = {p.roughness for p in parts if p.ks.any()}
+        iors = {p.ior for p in parts if p.kt.any()}
+        if len(spec) > 1 or len(iors) > 1:
+            raise SceneError(f"mix: at most one specular roughness and one ior, got {sorted(spec)} / {sorted(iors)}")
+        return Shading(kd=sum(p.kd for p in parts), ks=sum(p.ks for p in parts), kt=sum(p.kt for p in parts),
+                       roughness=spec.pop() if spec else 0.0, ior=iors.pop() if iors else 1.0,
+                       shadowed=any(p.shadowed for p in parts if p.kd.any()))
+    raise SceneError(f"not a material: {material!r}")
+
+
+_TYPES = {"mirror": Mirror, "metal": Metal, "glass": Glass, "diffuse": Diffuse}
+
+
+def material_from_dict(spec: Mapping[str, Any], where: str = "material"):
+    """A material from its parameter mapping, e.g. ``{type: metal, colour: [1, .8, .4], roughness: 0.2}``.
+
+    ``{type: mix, layers: [{weight: 0.7, type: diffuse, ...}, {weight: 0.3, type: mirror}]}`` combines.
+    """
+    if not isinstance(spec, Mapping) or "type" not in spec:
+        raise SceneError(f"{where}: expected a mapping with a 'type' key, got {spec!r}")
+    kind = spec["type"]
+    rest = {k: v for k, v in spec.items() if k != "type"}
+    if kind == "mix":
+        layers = rest.pop("layers", None)
+        if rest or not isinstance(layers, (list, tuple)) or not layers:
+            raise SceneError(f"{where}: mix needs only a non-empty 'layers' list")
+        out = []
+        for i, layer in enumerate(layers):
+            if not isinstance(layer, Mapping) or "weight" not in layer:
+                raise SceneError(f"{where}.layers[{i}]: needs a 'weight'")
+            sub = {k: v for k, v in layer.items() if k != "weight"}
+            out.append((float(layer["weight"]), material_from_dict(sub, f"{where}.layers[{i}]")))
+        return Mix(tuple(out))
+    cls = _TYPES.get(kind)
+    if cls is None:
+        raise SceneError(f"{where}: unknown type {kind!r} (known: mix, {', '.join(_TYPES)})")
+    known = {f.name for f in fields(cls)}
+    unknown = set(rest) - known
+    if unknown:
+        raise SceneError(f"{where}: unknown keys {sorted(unknown)} for {kind} (known: {sorted(known)})")
+    values = {k: tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else v for k, v in rest.items()}
+    for key in ("colour", "tint", "albedo"):
+        if key in values and len(values[key]) != 3:
+            raise SceneError(f"{where}.{key}: needs 3 values (RGB), got {values[key]}")
+    if kind == "metal" and not 0.0 <= float(values.get("roughness", 0.3)) <= 1.0:
+        raise SceneError(f"{where}.roughness: must be in [0, 1], got {values['roughness']}")
+    if kind == "glass" and not float(values.get("ior", 1.5)) > 0:
+        raise SceneError(f"{where}.ior: must be > 0, got {values['ior']}")
+    return cls(**values)

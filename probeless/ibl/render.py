@@ -1,0 +1,219 @@
+"""GPU image-based lighting of virtual objects seen by a pinhole camera (paper §4.8).
+
+:class:`IblRenderer` draws each object with its material under its own environment (a samplerCube
+with a mip chain, sampled with world directions) into linear colour in camera units, a mask and a
+depth image, and the contact shadow of each object on its supporting plane as a per-pixel ratio
+(occluded / unoccluded irradiance, by differential PRT: transfer vectors of a floor grid computed at
+load time by ray casting against the object, dotted with the object's SH each frame).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import moderngl
+import numpy as np
+
+from probeless.envmap.sh import cosine_lobe
+from probeless.ibl import prt
+from probeless.ibl.lighting import Lighting, glossy_faces
+from probeless.ibl.materials import shading
+from probeless.ibl.mesh_io import PlacedMesh
+from probeless.scene.gl import (
+    GL_TEXTURE_CUBE_MAP_SEAMLESS,
+    clip_from_camera,
+    create_context,
+    current_context,
+    load_program,
+    mat_bytes,
+    set_uniforms,
+)
+
+SHADERS = Path(__file__).with_name("shaders")
+
+
+@dataclass(frozen=True)
+class IblObject:
+    """A virtual object: placed mesh, material and contact-shadow settings."""
+
+    id: str
+    mesh: PlacedMesh
+    material: Any
+    contact_shadow: bool = True
+    floor_z: float | None = None   # supporting plane height; None = the mesh's lowest point [m, world]
+    shadow_extent: float = 4.0     # half side of the shadow grid [bounding radii]
+    prt_dirs: int = 512            # rays per vertex for the PRT precomputation [count]
+
+
+@dataclass(frozen=True)
+class RenderResult:
+    """One rendered view; pixels (row, col) of the camera image."""
+
+    color: np.ndarray    # (H, W, 3) float32 linear radiance x exposure [camera linear units]
+    mask: np.ndarray     # (H, W) bool, a virtual object covers the pixel
+    depth: np.ndarray    # (H, W) float32 camera z of the object [m]; inf where mask is False
+    shadow: np.ndarray   # (H, W, 3) float32 factor for the real image (1 = unchanged; contact shadows < 1)
+    missing: tuple[str, ...] = ()  # objects not drawn because they have no lighting yet
+
+
+def _cube(ctx: moderngl.Context, faces: np.ndarray) -> moderngl.TextureCube:
+    """A trilinear, mipmapped RGB32F cube texture of (6, S, S, 3) faces uploaded unchanged."""
+    size = faces.shape[1]
+    tex = ctx.texture_cube((size, size), 3, np.ascontiguousarray(faces, np.float32).tobytes(), dtype="f4")
+    tex.build_mipmaps()
+    tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+    return tex
+
+
+class _Gpu:
+    """GPU buffers and precomputed transfer of one object."""
+
+    def __init__(self, ctx, obj_prog, floor_prog, obj: IblObject):
+        m, self.obj = obj.mesh, obj
+        self.shade = shading(obj.material)
+        n = len(m.vertices)
+        self.prt = prt.transfer_vectors(m, m.vertices, m.normals, n_dirs=obj.prt_dirs) if self.shade.shadowed else None
+        self.vbo = ctx.buffer(np.hstack([m.vertices, m.normals]).astype("f4").tobytes())
+        self.prt_vbo = ctx.buffer(np.zeros((n, 3), "f4").tobytes())
+        self.ibo = ctx.buffer(m.triangles.astype("i4").tobytes())
+        self.vao = ctx.vertex_array(obj_prog, [(self.vbo, "3f 3f", "in_position", "in_normal"),
+                                               (self.prt_vbo, "3f", "in_prt")], index_buffer=self.ibo)
+        self.floor_vao = None
+        if obj.contact_shadow:
+            centre, half = m.centre[:2], obj.shadow_extent * m.radius
+            z = m.vertices[:, 2].min() if obj.floor_z is None else obj.floor_z
+            verts, tris = prt.floor_grid(centre, half, z)
+            up = np.tile([0.0, 0.0, 1.0], (len(verts), 1))
+            self.floor_t = prt.transfer_vectors(m, verts, up, n_dirs=obj.prt_dirs, offset=1e-4 * m.radius)
+            self.floor_t0 = prt.unshadowed_transfer(up[:1], n_dirs=obj.prt_dirs)[0]
+            self.falloff = prt.edge_falloff(verts, centre, half)
+            self.floor_pos = ctx.buffer(verts.astype("f4").tobytes())
+            self.floor_ratio = ctx.buffer(np.ones((len(verts), 3), "f4").tobytes())
+            self.floor_ibo = ctx.buffer(tris.astype("i4").tobytes())
+            self.floor_vao = ctx.vertex_array(floor_prog, [(self.floor_pos, "3f", "in_position"),
+                                                           (self.floor_ratio, "3f", "in_ratio")],
+                                              index_buffer=self.floor_ibo)
+        self.env = self.glossy = None
+
+    def set_lighting(self, ctx, lighting: Lighting) -> None:
+        """Upload the environment and evaluate the per-vertex PRT radiance and floor shadow ratio."""
+        self.release_textures()
+        self.env = _cube(ctx, lighting.faces)
+        pre = glossy_faces(lighting, self.shade.roughness)
+        self.glossy = _cube(ctx, pre) if pre is not None else None
+        self.glossy_lod = 0.0 if pre is not None else self.shade.roughness * np.log2(lighting.faces.shape[1])
+        sh = lighting.sh[:25]
+        per_row = np.repeat(cosine_lobe(5), [2 * b + 1 for b in range(5)])
+        self.sh_irr = (sh * per_row[:, None]).astype("f4")
+        if self.prt is not None:
+            self.prt_vbo.write((self.prt @ sh).astype("f4").tobytes())
+        if self.floor_vao is not None:
+            lit, free = self.floor_t @ sh, self.floor_t0 @ sh
+            ratio = np.where(free > 1e-8, lit / np.maximum(free, 1e-8), 1.0).clip(0.0, 1.0)
+            ratio = 1.0 - (1.0 - ratio) * self.falloff[:, None]
+            self.floor_ratio.write(ratio.astype("f4").tobytes())
+
+    def release_textures(self) -> None:
+        for tex in (self.env, self.glossy):
+            if tex is not None:
+                tex.release()
+        self.env = self.glossy = None
+
+    def release(self) -> None:
+        self.release_textures()
+        for res in (self.vao, self.vbo, self.prt_vbo, self.ibo, self.floor_vao):
+            if res is not None:
+                res.release()
+        if self.floor_vao is not None:
+            for res in (self.floor_pos, self.floor_ratio, self.floor_ibo):
+                res.release()
+
+
+class IblRenderer:
+    """Renders a fixed set of :class:`IblObject` lit by per-object :class:`Lighting`."""
+
+    def __init__(self, objects: list[IblObject], *, exposure: float = 1.0, near: float = 0.05, far: float = 50.0,
+                 ctx: moderngl.Context | None = None):
+        self.own_ctx = ctx is None
+        self.ctx = ctx or create_context()
+        self.ctx.__enter__()
+        self.ctx.enable_direct(GL_TEXTURE_CUBE_MAP_SEAMLESS)
+        self.obj_prog = load_program(self.ctx, "object", shader_dir=SHADERS)
+        self.floor_prog = load_program(self.ctx, "floor", shader_dir=SHADERS)
+        self.objects = {o.id: _Gpu(self.ctx, self.obj_prog, self.floor_prog, o) for o in objects}
+        self.exposure, self.near, self.far = exposure, near, far
+        self._targets = None
+
+    @current_context
+    def set_lighting(self, object_id: str, lighting: Lighting) -> None:
+        """Light object ``object_id`` by ``lighting`` from now on."""
+        self.objects[object_id].set_lighting(self.ctx, lighting)
+
+    def _framebuffers(self, width: int, height: int):
+        if self._targets is None or self._targets[0] != (width, height):
+            if self._targets is not None:
+                for res in self._targets[1:]:
+                    res.release()
+            color = self.ctx.texture((width, height), 4, dtype="f4")
+            zbuf = self.ctx.texture((width, height), 1, dtype="f4")
+            shadow = self.ctx.texture((width, height), 4, dtype="f4")
+            depth = self.ctx.depth_renderbuffer((width, height))
+            self._targets = ((width, height), self.ctx.framebuffer([color, zbuf], depth),
+                             self.ctx.framebuffer([shadow], depth), color, zbuf, shadow, depth)
+        return self._targets[1:]
+
+    @current_context
+    def render(self, K: np.ndarray, world_from_camera: np.ndarray, width: int, height: int) -> RenderResult:
+        """Draw every lit object seen from ``world_from_camera`` through pinhole ``K`` at ``width`` x ``height``."""
+        fbo, shadow_fbo, color, zbuf, shadow, _ = self._framebuffers(width, height)
+        camera_from_world = np.linalg.inv(world_from_camera)
+        clip = mat_bytes(clip_from_camera(K, width, height, self.near, self.far) @ camera_from_world)
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        p = self.obj_prog
+        p["clip_from_world"].write(clip)
+        p["camera_from_world"].write(mat_bytes(camera_from_world))
+        drawn = [g for g in self.objects.values() if g.env is not None]
+        for g in drawn:
+            s = g.shade
+            (g.glossy or g.env).use(1)
+            g.env.use(0)
+            set_uniforms(p, env=0, glossy=1, glossy_lod=float(g.glossy_lod), camera_position=tuple(world_from_camera[:3, 3]),
+                         kd=tuple(s.kd), ks=tuple(s.ks), kt=tuple(s.kt), ior=float(s.ior),
+                         use_prt=g.prt is not None, exposure=float(self.exposure))
+            if "sh_irr" in p:
+                p["sh_irr"].write(g.sh_irr.tobytes())
+            g.vao.render(moderngl.TRIANGLES)
+        shadow_fbo.use()
+        shadow_fbo.clear(1.0, 1.0, 1.0, 1.0)
+        shadow_fbo.depth_mask = False
+        self.ctx.enable(moderngl.BLEND)
+        self.ctx.blend_func = moderngl.DST_COLOR, moderngl.ZERO  # several shadows multiply
+        self.floor_prog["clip_from_world"].write(clip)
+        for g in drawn:
+            if g.floor_vao is not None:
+                g.floor_vao.render(moderngl.TRIANGLES)
+        self.ctx.disable(moderngl.BLEND)
+        shadow_fbo.depth_mask = True
+        rgba = np.frombuffer(color.read(), np.float32).reshape(height, width, 4)
+        z = np.frombuffer(zbuf.read(), np.float32).reshape(height, width)
+        ratio = np.frombuffer(shadow.read(), np.float32).reshape(height, width, 4)[..., :3].copy()
+        mask = rgba[..., 3] > 0.5
+        return RenderResult(rgba[..., :3].copy(), mask, np.where(mask, z, np.inf).astype(np.float32), ratio,
+                            tuple(g.obj.id for g in self.objects.values() if g.env is None))
+
+    @current_context
+    def release(self) -> None:
+        """Free every GL resource (the context too when this renderer created it)."""
+        for g in self.objects.values():
+            g.release()
+        if self._targets is not None:
+            for res in self._targets[1:]:
+                res.release()
+        self._targets = None
+        if self.own_ctx:
+            self.ctx.release()
