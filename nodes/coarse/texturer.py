@@ -138,8 +138,12 @@ class CoarseTexturer(Node):
         self.t0_ns = stamp if self.t0_ns is None else self.t0_ns
         d = delta.delta if delta is not None and delta.sampled and self.params.use_delta else np.zeros(3)
         try:
-            with self.ctx.timed("texture"):
-                self.model.step(img.data, self.camera, pose.target_from_source, d, (stamp - self.t0_ns) * 1e-9)
+            with self.ctx.timed("occlusion"):
+                T = self.model.occlude(pose.target_from_source)
+            with self.ctx.timed("texture_update"):
+                self.model.update(img.data, self.camera, T, d, (stamp - self.t0_ns) * 1e-9)
+            with self.ctx.timed("inpaint"):
+                self.model.inpaint_if_due()
         except ProbelessError as exc:
             self.counts[f"skipped:{type(exc).__name__}"] += 1
             self.ctx.log.warning("frame %d not applied: %s", stamp, exc)

@@ -69,12 +69,25 @@ class CoarseModel:
     def step(self, image: np.ndarray, model, world_from_fisheye: np.ndarray, delta=(0.0, 0.0, 0.0),
              t_s: float = 0.0) -> bool:
         """Update the atlas with one fisheye frame; True when inpainting ran. GeometryError for a bad pose."""
+        T = self.occlude(world_from_fisheye)
+        self.update(image, model, T, delta, t_s)
+        return self.inpaint_if_due()
+
+    def occlude(self, world_from_fisheye: np.ndarray) -> np.ndarray:
+        """The occlusion mask for the fisheye's floor position (paper §4.4); returns the checked pose."""
         T = np.asarray(world_from_fisheye, np.float64)
         if T.shape != (4, 4) or not np.isfinite(T).all():
             raise GeometryError(f"world_from_fisheye must be a finite 4x4 transform, got {T.shape}")
         self._timed("occlusion", self.gpu.occlusion, T[:2, 3])
+        return T
+
+    def update(self, image: np.ndarray, model, T: np.ndarray, delta=(0.0, 0.0, 0.0), t_s: float = 0.0) -> None:
+        """Texture the visible texels from ``image``, Δ for the rest (paper §4.3, §4.6)."""
         self._timed("texture", self.gpu.update, image, model, T, delta, t_s)
         self.frames += 1
+
+    def inpaint_if_due(self) -> bool:
+        """Re-inpaint never-observed texels when enough new ones were observed (paper §4.5)."""
         return self._inpaint() if self.inpainter is not None else False
 
     def _inpaint(self) -> bool:

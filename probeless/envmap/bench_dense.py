@@ -27,7 +27,7 @@ def fuse_scene(scene, frames: int = 6, voxel_m: float = 0.02, renderer=None):
     rig = Rig(scene, renderer=renderer, envmaps=False)
     dev = o3c.Device("CPU:0")
     vbg = o3d.t.geometry.VoxelBlockGrid(("tsdf", "weight", "color"), (o3c.float32, o3c.float32, o3c.float32),
-                                        ((1,), (1,), (3,)), voxel_m, 16, 40000, dev)
+                                        ((1,), (1,), (3,)), voxel_m, 16, 8000, dev)
     K = o3c.Tensor(scene.rgbd.K, o3c.float64)
     for i, t in enumerate(np.linspace(0.0, scene.duration, frames)):
         rgb, depth, pose = rig.render_rgbd(FrameEvent(RGBD_FRAME, i, float(t)))

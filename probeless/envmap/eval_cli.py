@@ -120,10 +120,12 @@ def plot_psnr(rendered, results, path: str) -> None:
 
 
 def mirror_figure(rendered, results, out_dir: str) -> None:
-    """Per object: mirror spheres lit by ours, the baseline and the true map (last frame), side by side."""
+    """Per object, last frame: mirror spheres lit by ours, the baseline and the true map side by side
+    (``mirror_<id>.png``, like the paper's Figure 13) and their cubemap nets (``cubemap_net_<id>.png``)."""
     import cv2
 
     from probeless.envmap.metrics import render_mirror_sphere
+    from probeless.scene.preview import cube_net
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -134,10 +136,14 @@ def mirror_figure(rendered, results, out_dir: str) -> None:
             if name in results and o.id in results[name].last_faces:
                 tiles.append((name, results[name].last_faces[o.id]))
         tiles.append(("truth", rendered.truth[o.id, t]))
-        imgs = []
+        imgs, nets = [], []
         for name, faces in tiles:
+            net = (np.clip(cube_net(np.asarray(faces, np.float32), 96), 0, 1) * 255).astype(np.uint8)
+            cv2.putText(net, name, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 0), 1, cv2.LINE_AA)
+            nets.append(net)
             img, _ = render_mirror_sphere(np.clip(faces, 0, 1), 256)
             img = (img * 255).astype(np.uint8)
             cv2.putText(img, name, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 0), 1, cv2.LINE_AA)
             imgs.append(img)
         cv2.imwrite(str(out / f"mirror_{o.id}.png"), cv2.cvtColor(np.hstack(imgs), cv2.COLOR_RGB2BGR))
+        cv2.imwrite(str(out / f"cubemap_net_{o.id}.png"), cv2.cvtColor(np.vstack(nets), cv2.COLOR_RGB2BGR))
