@@ -89,6 +89,10 @@ def cmd_bench(ns: argparse.Namespace) -> int:
         from probeless.tools.bench_sensors import main as bench_sensors
 
         return bench_sensors(json_out=ns.json, quick=ns.quick)
+    if ns.what == "dense":
+        from probeless.tools.bench_dense import main as bench_dense
+
+        return bench_dense(json_out=ns.json, quick=ns.quick)
     if ns.what == "pipeline":
         from probeless.tools.bench_pipeline import main as bench_pipeline
 
@@ -204,7 +208,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_graph)
 
     c = sub.add_parser("bench", help="run a benchmark and print its figures")
-    c.add_argument("what", choices=("bus", "bag", "sensors", "slam", "coarse", "pipeline"))
+    c.add_argument("what", choices=("bus", "bag", "sensors", "slam", "coarse", "pipeline", "dense"))
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.add_argument("--quick", action="store_true", help="fewer messages (for smoke tests)")
     c.add_argument("--atlas-size", type=int, default=2048, help="coarse: atlas side [texels] (default 2048)")

@@ -5,20 +5,25 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
+from probeless.messages.geometry import Floorplan, PoseStamped
+from probeless.messages.header import Header
+from probeless.messages.lighting import (
+    BrightnessDelta,
+    Cubemap,
+    SHCoefficients,
+    texel_from_direction,
+)
+from probeless.messages.mesh import PointCloud
+from probeless.messages.sensor import Image
+from probeless.nodes.envmap.cubemap import CubemapRenderer
 from scipy import ndimage
 
 from probeless.coarse.atlas import fit_atlas
 from probeless.coarse.model import CoarseConfig, make_layout
 from probeless.coarse.texels import texel_map
 from probeless.coarse.truth import true_atlas
-from probeless.envmap.cubemap import EnvmapRenderer, prefilter
+from probeless.envmap.cubemap import EnvmapRenderer, face_buckets, prefilter
 from probeless.envmap.sh import cube_directions, cube_solid_angles, irradiance_from_sh
-from probeless.messages.geometry import Floorplan, PoseStamped
-from probeless.messages.header import Header
-from probeless.messages.lighting import BrightnessDelta, Cubemap, SHCoefficients
-from probeless.messages.mesh import PointCloud
-from probeless.messages.sensor import Image
-from probeless.nodes.envmap.cubemap import CubemapRenderer
 from probeless.runtime.params import load_params
 from probeless.runtime.testing import RecordingContext, run_node
 from probeless.scene.build import srgb_to_linear
@@ -198,6 +203,18 @@ def test_dense_mesh_and_other_objects(renderer):
     half = np.degrees(np.arcsin(radius / 1.0))
     assert yellow[angle < half - 2].all() and not yellow[angle > half + 2].any()
     renderer.clear_dense()
+
+
+def test_face_buckets_hold_every_point_in_its_cube_face():
+    rng = np.random.default_rng(2)
+    pos = np.array([1.0, 2.0, 1.5])
+    pts = pos + rng.normal(size=(5000, 3))
+    buckets = face_buckets(pts, pos, margin=0.05)
+    face, _, _ = texel_from_direction(pts - pos, 64)
+    for f in range(6):
+        assert set(np.flatnonzero(face == f)) <= set(buckets[f].tolist())
+    extra = sum(len(b) for b in buckets) - len(pts)
+    assert 0 < extra < 0.15 * len(pts)  # only points near a seam are drawn twice
 
 
 def test_prefilter_is_an_area_averaged_mip_chain():

@@ -24,16 +24,21 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
+from probeless.messages.geometry import Floorplan, PoseStamped
+from probeless.messages.header import Header
+from probeless.messages.lighting import (
+    BrightnessDelta,
+    Cubemap,
+    CubemapLevel,
+    SHCoefficients,
+)
+from probeless.messages.mesh import PointCloud, TriangleMesh
+from probeless.messages.sensor import CameraInfo, Image
 
 from probeless.coarse.model import CoarseConfig, make_layout
 from probeless.envmap.cubemap import EnvmapRenderer, prefilter
 from probeless.envmap.sh import project_cubemap
 from probeless.errors import ProbelessError
-from probeless.messages.geometry import Floorplan, PoseStamped
-from probeless.messages.header import Header
-from probeless.messages.lighting import BrightnessDelta, Cubemap, CubemapLevel, SHCoefficients
-from probeless.messages.mesh import PointCloud, TriangleMesh
-from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
 from probeless.scene.build import srgb_to_linear
 from probeless.scene.rig import linear_to_srgb

@@ -23,7 +23,13 @@ import numpy as np
 from probeless.coarse.atlas import AtlasLayout
 from probeless.coarse.texels import coarse_mesh
 from probeless.errors import ProbelessError
-from probeless.scene.gl import create_context, cube_face_clip_from_world, current_context, load_program, mat_bytes
+from probeless.scene.gl import (
+    create_context,
+    cube_face_clip_from_world,
+    current_context,
+    load_program,
+    mat_bytes,
+)
 
 SHADERS = Path(__file__).with_name("shaders")
 NEAR_M = 0.01
@@ -47,6 +53,25 @@ def ldr_colors(colors: np.ndarray, what: str) -> np.ndarray:
     if c.ndim != 2 or c.shape[1] != 3:
         raise ProbelessError(f"{what}: colours must be (N, 3), got {c.shape}")
     return c.astype("f4") / 255.0 if c.dtype == np.uint8 else c.astype("f4")
+
+
+def face_buckets(points: np.ndarray, position: np.ndarray, margin: float = 0.05) -> list[np.ndarray]:
+    """Indices of the points each cube face can see (int32 per face), faces in cube order.
+
+    A point goes to every face whose 90-degree frustum, widened by ``margin`` (tan units), holds it,
+    so splats straddling a seam are drawn on both sides. Drawing each face's bucket instead of all
+    points six times cuts the vertex work about six-fold.
+    """
+    d = np.asarray(points, np.float32) - np.asarray(position, np.float32)
+    a = np.abs(d)
+    out = []
+    for axis in range(3):
+        others = [k for k in range(3) if k != axis]
+        side = np.maximum(a[:, others[0]], a[:, others[1]])
+        for sign in (1.0, -1.0):
+            forward = sign * d[:, axis]
+            out.append(np.flatnonzero((forward > 0) & (side <= forward * (1.0 + margin))).astype("i4"))
+    return out
 
 
 def prefilter(faces: np.ndarray, levels: int) -> list[tuple[float, np.ndarray]]:
@@ -90,6 +115,7 @@ class EnvmapRenderer:
         self.layout_padding = 2  # layout_atlas's default ring of texels around every rectangle
         self.atlas_tex = None
         self.dense = None  # (vao, buffers, mode)
+        self._points = self._bucket_key = self._bucket_ibo = None  # points, and per-face index buckets
         self._fbos: dict[int, moderngl.Framebuffer] = {}
 
     @current_context
@@ -119,6 +145,7 @@ class EnvmapRenderer:
             raise ProbelessError(f"EnvmapRenderer.set_dense: points {p.shape} and colours {np.shape(colors)} "
                                  f"must be (N, 3) each")
         self._set_dense(p, ldr_colors(colors, "set_dense"), None, moderngl.POINTS)
+        self._points = p
 
     @current_context
     def set_dense_mesh(self, vertices: np.ndarray, triangles: np.ndarray, vertex_colors: np.ndarray) -> None:
@@ -131,6 +158,7 @@ class EnvmapRenderer:
 
     def _set_dense(self, p, c, tris, mode) -> None:
         self.clear_dense()
+        self._points, self._bucket_key, self._bucket_ibo = None, None, None
         if len(p) == 0 or (tris is not None and len(tris) == 0):
             return
         bufs = [self.ctx.buffer(np.hstack([p, c]).astype("f4").tobytes())]
@@ -140,6 +168,22 @@ class EnvmapRenderer:
                                     index_buffer=bufs[1] if tris is not None else None)
         self.dense = (vao, bufs, mode)
 
+    def _point_buckets(self, position: np.ndarray) -> list[tuple[int, int]]:
+        """(first, count) per face into an index buffer of per-face points; rebuilt when the position moves."""
+        key = tuple(np.round(position, 6))
+        if key != self._bucket_key:
+            buckets = face_buckets(self._points, position)
+            if self._bucket_ibo is not None:
+                self._bucket_ibo[0].release()
+                self._bucket_ibo[1].release()
+            ibo = self.ctx.buffer(np.concatenate(buckets).astype("i4").tobytes())
+            vao = self.ctx.vertex_array(self.dense_prog, [(self.dense[1][0], "3f 3f", "in_position", "in_color")],
+                                        index_buffer=ibo)
+            starts = np.cumsum([0] + [len(b) for b in buckets])
+            self._bucket_ibo = (vao, ibo, [(int(starts[f]), len(buckets[f])) for f in range(6)])
+            self._bucket_key = key
+        return self._bucket_ibo[2]
+
     @current_context
     def clear_dense(self) -> None:
         """Forget the dense model."""
@@ -147,7 +191,10 @@ class EnvmapRenderer:
             self.dense[0].release()
             for b in self.dense[1]:
                 b.release()
-        self.dense = None
+        if getattr(self, "_bucket_ibo", None) is not None:
+            self._bucket_ibo[0].release()
+            self._bucket_ibo[1].release()
+        self.dense, self._points, self._bucket_key, self._bucket_ibo = None, None, None, None
 
     def _fbo(self, size: int) -> moderngl.Framebuffer:
         if size not in self._fbos:
@@ -181,6 +228,7 @@ class EnvmapRenderer:
             if name in dp:
                 dp[name] = value
         out = np.empty((6, size, size, 3), np.float32)
+        buckets = self._point_buckets(pos) if dense and self.dense is not None and self._points is not None else None
         for face, clip in enumerate(cube_face_clip_from_world(pos, size, NEAR_M, self.far)):
             m = mat_bytes(clip)
             fbo.clear(0.0, 0.0, 0.0, 1.0)
@@ -193,7 +241,10 @@ class EnvmapRenderer:
                 dp["clip_from_world"].write(m)
                 if "round_splats" in dp:
                     dp["round_splats"] = mode == moderngl.POINTS
-                vao.render(mode)
+                if buckets is None:
+                    vao.render(mode)
+                elif buckets[face][1]:
+                    self._bucket_ibo[0].render(mode, vertices=buckets[face][1], first=buckets[face][0])
             for centre, radius, color in spheres:
                 self.flat_prog["clip_from_world"].write(m)
                 self.flat_prog["sphere"] = (*map(float, centre), float(radius))

@@ -58,14 +58,14 @@ def sh_basis(dirs: np.ndarray, bands: int) -> np.ndarray:
     P = {(0, 0): np.ones_like(z)}
     for m in range(1, lmax + 1):
         P[m, m] = -(2 * m - 1) * s * P[m - 1, m - 1]
-    for m in range(0, lmax):
+    for m in range(lmax):
         P[m + 1, m] = (2 * m + 1) * z * P[m, m]
-    for m in range(0, lmax + 1):
+    for m in range(lmax + 1):
         for l in range(m + 2, lmax + 1):
             P[l, m] = ((2 * l - 1) * z * P[l - 1, m] - (l + m - 1) * P[l - 2, m]) / (l - m)
     out = np.empty(d.shape[:-1] + (bands * bands,), dtype=np.float64)
     for l in range(bands):
-        for m in range(0, l + 1):
+        for m in range(l + 1):
             k = sqrt((2 * l + 1) / (4 * pi) * factorial(l - m) / factorial(l + m))
             if m == 0:
                 out[..., l * (l + 1)] = k * P[l, 0]
