@@ -52,6 +52,15 @@ def parse_objects(ids: tuple, positions: tuple, node_id: str) -> dict[str, np.nd
     return out
 
 
+def move_object(objects: dict[str, np.ndarray], msg: PoseStamped, counts: Counter) -> None:
+    """Move (or add) the object ``msg.child_frame_id`` to the pose's position; a non-finite pose is counted."""
+    T = msg.target_from_source
+    if np.isfinite(T).all():
+        objects[msg.child_frame_id] = T[:3, 3].astype(np.float64)
+    else:
+        counts["bad_object_pose"] += 1
+
+
 class BaselineEnvmap(Node):
     """``fisheye`` + ``fisheye_pose`` (+ ``camera_info``) -> ``envmap/<id>`` for every object."""
 
@@ -92,11 +101,7 @@ class BaselineEnvmap(Node):
             else:
                 self.map.model = model  # the direction table does not depend on the camera
         elif name == "object_poses":
-            T = msg.target_from_source
-            if np.isfinite(T).all():
-                self.objects[msg.child_frame_id] = T[:3, 3].astype(np.float64)
-            else:
-                self.counts["bad_object_pose"] += 1
+            move_object(self.objects, msg, self.counts)
         else:
             self.sync.add(name, msg)
 

@@ -34,6 +34,7 @@ from probeless.messages.lighting import (
 )
 from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
+from probeless.nodes.envmap.baseline import move_object, parse_objects
 
 from probeless.coarse.model import CoarseConfig, make_layout
 from probeless.envmap.cubemap import EnvmapRenderer, prefilter
@@ -81,13 +82,10 @@ class CubemapRenderer(Node):
 
     def setup(self) -> None:
         p = self.params
-        if len(p.object_ids) != len(p.object_positions) or any(len(x) != 3 for x in p.object_positions):
-            raise ProbelessError(f"cubemap_renderer: object_ids ({len(p.object_ids)}) and object_positions "
-                                 f"({len(p.object_positions)}) need one [x, y, z] per id")
         if p.face_size % (1 << (p.mip_levels - 1)):
             raise ProbelessError(f"cubemap_renderer: face_size {p.face_size} is not divisible by 2^(mip_levels-1) "
                                  f"= {1 << (p.mip_levels - 1)}")
-        self.objects = {i: np.asarray(x, np.float64) for i, x in zip(p.object_ids, p.object_positions)}
+        self.objects = parse_objects(p.object_ids, p.object_positions, self.ctx.node_id)
         self.renderer: EnvmapRenderer | None = None
         self.floorplan: Floorplan | None = None
         self.atlas: Image | None = None
@@ -114,11 +112,7 @@ class CubemapRenderer(Node):
             if msg.sampled and self.dense_msg is not None and msg.header.stamp_ns > self.dense_msg.header.stamp_ns:
                 self.delta = self.delta + np.asarray(msg.delta, np.float32)
         elif name == "object_poses":
-            T = msg.target_from_source
-            if np.isfinite(T).all():
-                self.objects[msg.child_frame_id] = T[:3, 3].astype(np.float64)
-            else:
-                self.counts["bad_object_pose"] += 1
+            move_object(self.objects, msg, self.counts)
         self._maybe_render()
 
     def _on_floorplan(self, msg: Floorplan) -> None:
