@@ -61,6 +61,11 @@ def move_object(objects: dict[str, np.ndarray], msg: PoseStamped, counts: Counte
         counts["bad_object_pose"] += 1
 
 
+def _encode(faces: np.ndarray, dtype: str) -> np.ndarray:
+    f = np.clip(faces, 0.0, 1.0)
+    return (f * 255.0 + 0.5).astype(np.uint8) if dtype == "uint8" else f.astype(dtype)
+
+
 class BaselineEnvmap(Node):
     """``fisheye`` + ``fisheye_pose`` (+ ``camera_info``) -> ``envmap/<id>`` for every object."""
 
@@ -82,6 +87,8 @@ class BaselineEnvmap(Node):
         publish_every: int = param(1, min=1, max=100000, doc="publish the maps every n-th frame [count]")
         dtype: str = param("uint8", choices=("uint8", "float16", "float32"), doc="face type: uint8 0..255 or "
                                                                                  "float 0..1 (camera LDR)")
+        dense: bool = param(False, doc="baseline + dense: draw the dense model (points input, needs floorplan) on top")
+        net_dir: str = param("", doc="write the final map of each object as <net_dir>/cubemap_net_<id>.png; '' = none")
         alpha: bool = param(False, doc="add an alpha channel: 255 (1.0) where observed, 0 never observed")
 
     def setup(self) -> None:
@@ -90,9 +97,14 @@ class BaselineEnvmap(Node):
         self.sync = ExactTimeSync(["fisheye", "fisheye_pose"], self._on_pair, on_unmatched=self._unmatched)
         self.map: BaselineMap | None = None
         self.counts: Counter[str] = Counter()
+        self.overlay = None          # DenseOverlay once a floorplan arrived (dense: true)
+        self.points = None           # the newest dense model (PointCloud)
+        self.last_faces: dict[str, np.ndarray] = {}
 
     def on_input(self, name: str, msg) -> None:
-        if name in self.IGNORED:
+        if self.params.dense and name in ("floorplan", "points"):
+            self._on_dense_input(name, msg)
+        elif name in self.IGNORED:
             self.counts[f"ignored:{name}"] += 1
         elif name == "camera_info":
             model = model_from_info(msg)
@@ -104,6 +116,16 @@ class BaselineEnvmap(Node):
             move_object(self.objects, msg, self.counts)
         else:
             self.sync.add(name, msg)
+
+    def _on_dense_input(self, name: str, msg) -> None:
+        from probeless.envmap.overlay import DenseOverlay
+
+        if name == "floorplan" and self.overlay is None:
+            self.overlay = DenseOverlay(msg.vertices, msg.ceiling_height)
+        elif name == "points":
+            self.points = msg
+        if self.overlay is not None and self.points is not None:
+            self.overlay.set_points(self.points.points, self.points.colors)
 
     def _unmatched(self, name: str, msg, reason: str) -> None:
         self.counts[f"unpaired_{name}:{reason}"] += 1
@@ -125,10 +147,22 @@ class BaselineEnvmap(Node):
             faces = self.map.faces_as(p.dtype, p.alpha)  # shared by every object's message (read-only)
             coeffs = project_cubemap(srgb_to_linear(np.clip(self.map.faces, 0, 1)), 5).astype(np.float32)
             for oid, position in self.objects.items():
-                self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, position, faces, linear=False))
-                self.ctx.publish(f"sh/{oid}", SHCoefficients(header, oid, 5, coeffs))
+                obj_faces, obj_coeffs = faces, coeffs
+                if self.overlay is not None and self.points is not None:  # baseline + dense: per object
+                    ldr, _ = self.overlay.over(self.map.faces, position)
+                    self.last_faces[oid] = ldr
+                    obj_faces = _encode(ldr, p.dtype)
+                    obj_coeffs = project_cubemap(srgb_to_linear(np.clip(ldr, 0, 1)), 5).astype(np.float32)
+                self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, position, obj_faces, linear=False))
+                self.ctx.publish(f"sh/{oid}", SHCoefficients(header, oid, 5, obj_coeffs))
 
     def close(self) -> None:
+        if getattr(self, "map", None) is not None and self.params.net_dir:
+            from probeless.nodes.envmap.cubemap import write_nets
+
+            write_nets({oid: self.last_faces.get(oid, self.map.faces) for oid in self.objects}, self.params.net_dir)
+        if getattr(self, "overlay", None) is not None:
+            self.overlay.release()
         if hasattr(self, "sync"):
             self.sync.flush()
             self.ctx.log.info("baseline envmap: %s", dict(sorted(self.counts.items())))

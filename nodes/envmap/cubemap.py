@@ -51,6 +51,18 @@ def to_ldr(colors: np.ndarray) -> np.ndarray:
     return c.astype(np.float32) / 255.0 if c.dtype == np.uint8 else linear_to_srgb(c).astype(np.float32)
 
 
+def write_nets(faces_by_id: dict[str, np.ndarray], out_dir: str) -> None:
+    """``cubemap_net_<id>.png`` (horizontal cross, z up) of each object's LDR faces."""
+    from pathlib import Path
+
+    from probeless.scene.preview import cube_net, write_png
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for oid, faces in faces_by_id.items():
+        write_png(out / f"cubemap_net_{oid}.png", (np.clip(cube_net(faces), 0, 1) * 255 + 0.5).astype(np.uint8))
+
+
 class CubemapRenderer(Node):
     """``floorplan`` + ``atlas`` (+ ``points`` | ``dense_mesh``, ``delta``, ``object_poses``) -> ``envmap/*``, ``sh/*``."""
 
@@ -79,6 +91,8 @@ class CubemapRenderer(Node):
         sh_bands: int = param(5, min=1, max=8, doc="SH bands of the sh/* output (5 = 25 coefficients, the paper's)")
         dtype: str = param("uint8", choices=("uint8", "float16"), doc="face sample type")
         max_rate_hz: float = param(0.0, min=0.0, max=1000.0, doc="render at most this often; 0 = every atlas [Hz]")
+        net_dir: str = param("", doc="write the last map of each object as a cube net, <net_dir>/cubemap_net_<id>.png, "
+                                     "at the end (the paper's Figure 9); '' = none")
 
     def setup(self) -> None:
         p = self.params
@@ -96,6 +110,7 @@ class CubemapRenderer(Node):
         self.last_render_ns: int | None = None
         self.counts: Counter[str] = Counter()
         self.logged: set[str] = set()
+        self.last_faces: dict[str, np.ndarray] = {}
         if p.max_rate_hz > 0:
             self.ctx.create_timer(min(0.05, 0.25 / p.max_rate_hz), self._maybe_render, name="render")
 
@@ -191,6 +206,7 @@ class CubemapRenderer(Node):
         enc = self._encode
         mips = tuple(CubemapLevel(r, enc(f)) for r, f in levels[1:])
         self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, pos.copy(), enc(faces), mips, linear=False))
+        self.last_faces[oid] = faces
         self.ctx.publish(f"sh/{oid}", SHCoefficients(header, oid, p.sh_bands, coeffs.astype(np.float32)))
         self.counts["rendered"] += 1
 
@@ -204,6 +220,8 @@ class CubemapRenderer(Node):
             self.ctx.log.error("%s", text)
 
     def close(self) -> None:
+        if getattr(self, "last_faces", None) and self.params.net_dir:
+            write_nets(self.last_faces, self.params.net_dir)
         if getattr(self, "renderer", None) is not None:
             self.renderer.release()
         if hasattr(self, "counts"):
