@@ -24,6 +24,8 @@ BUILTIN: dict[str, str] = {
     "video_writer": "probeless.nodes.output.writers:VideoWriter",
     "png_writer": "probeless.nodes.output.writers:PngWriter",
     "ibl_compositor": "probeless.nodes.envmap.compositor:IblCompositor",
+    "video360_source": "probeless.nodes.pano.sources:Video360Source",
+    "panorama_source": "probeless.nodes.pano.sources:PanoramaSource",
     "fisheye_undistort": "probeless.nodes.sensors.undistort:FisheyeUndistort",
     "synthetic_rig": "probeless.nodes.sensors.synthetic_rig:SyntheticRig",
     "bench_source": "probeless.tools.bench_nodes:BenchSource",

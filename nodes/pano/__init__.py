@@ -1,0 +1,1 @@
+"""360° video IBL nodes: panorama sources, inverse tone mapping, diffuse radiance maps."""

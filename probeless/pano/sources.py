@@ -1,0 +1,152 @@
+"""Panorama readers: still equirectangular images (Radiance .hdr, EXR, PNG/JPG) and 360° video frames.
+
+Pure readers, no node: :func:`read_panorama` returns linear float32 RGB for HDR files and sRGB uint8
+for LDR ones; :class:`VideoFrames` decodes a video on a background thread into a small queue (the
+paper's separate loader thread), so the consumer never waits for the decoder unless it wants to.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+from probeless.datasets.framethread import END, FrameThread
+from probeless.errors import DatasetError
+
+HDR_SUFFIXES = (".hdr", ".pic", ".exr")
+LDR_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+
+def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
+    """sRGB-encoded uint8 -> linear float32 in [0, 1] (the IEC 61966-2-1 transfer function)."""
+    c = rgb.astype(np.float32) / 255.0
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def equirect_ok(shape: tuple[int, ...], path: str = "") -> None:
+    """Raise DatasetError unless ``shape`` (H, W, ...) is an equirectangular 2:1 image (W == 2·H)."""
+    if len(shape) < 2 or shape[0] < 1 or shape[1] != 2 * shape[0]:
+        raise DatasetError(f"{path or 'panorama'}: shape {tuple(shape)} is not equirectangular "
+                           f"(width must be 2 x height)")
+
+
+def read_panorama(path: str, linear: bool = False) -> np.ndarray:
+    """Read a panorama as RGB: .hdr/.pic/.exr -> float32 (H, W, 3) linear; .png/.jpg -> uint8 sRGB,
+    or linear float32 in [0, 1] with ``linear``. DatasetError for a missing, unknown or unreadable file."""
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in HDR_SUFFIXES + LDR_SUFFIXES:
+        raise DatasetError(f"{path}: unknown panorama type {suffix!r}, expected one of {HDR_SUFFIXES + LDR_SUFFIXES}")
+    if not os.path.isfile(path):
+        raise DatasetError(f"{path}: panorama file not found")
+    hdr = suffix in HDR_SUFFIXES
+    img = cv2.imread(path, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR if hdr else cv2.IMREAD_COLOR)
+    if img is None:
+        hint = (" (this OpenCV cannot read OpenEXR: set OPENCV_IO_ENABLE_OPENEXR=1 before cv2 is imported "
+                "with a build that has it, or convert the file to Radiance .hdr)") if suffix == ".exr" else ""
+        raise DatasetError(f"{path}: cannot decode the image{hint}")
+    rgb = np.ascontiguousarray(img[..., ::-1])
+    if hdr:
+        rgb = rgb.astype(np.float32, copy=False)
+        if not np.isfinite(rgb).all():
+            raise DatasetError(f"{path}: HDR panorama has non-finite pixels")
+        return rgb
+    if rgb.dtype != np.uint8:
+        raise DatasetError(f"{path}: expected 8-bit pixels, got {rgb.dtype}")
+    return srgb_to_linear(rgb) if linear else rgb
+
+
+def _decode(path: str, fps: float, loop: bool) -> Iterator[tuple[int, tuple[float, np.ndarray]]]:
+    """(index, (t_s, rgb uint8)) for every frame; with ``loop`` reopens the file at the end (index 0 again)."""
+    while True:
+        cap = cv2.VideoCapture(path)
+        i = 0
+        try:
+            while True:
+                ok, bgr = cap.read()
+                if not ok:
+                    break
+                yield i, (i / fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+                i += 1
+        finally:
+            cap.release()
+        if i == 0:
+            raise DatasetError(f"{path}: no frame could be decoded")
+        if not loop:
+            return
+
+
+class VideoFrames:
+    """Frames of a video file as ``(index, t_s, rgb uint8 (H, W, 3))``, decoded on a background thread.
+
+    ``t_s = index / fps`` (constant frame rate; fps from the container unless given). With ``loop``
+    the file is reopened at its end and indices start again at 0. ``buffer`` frames are decoded ahead.
+    """
+
+    def __init__(self, path: str, loop: bool = False, fps: float = 0.0, buffer: int = 4):
+        if not os.path.isfile(path):
+            raise DatasetError(f"{path}: video file not found")
+        cap = cv2.VideoCapture(path)
+        try:
+            if not cap.isOpened():
+                raise DatasetError(f"{path}: OpenCV cannot open the video")
+            self.fps = fps or cap.get(cv2.CAP_PROP_FPS)
+            self.frame_count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))  # container's estimate, may be off by one
+            ok, first = cap.read()
+        finally:
+            cap.release()
+        if not ok:
+            raise DatasetError(f"{path}: cannot decode the first video frame")
+        if not self.fps or not np.isfinite(self.fps) or self.fps <= 0:
+            raise DatasetError(f"{path}: the container gives no frame rate; pass fps")
+        self.path, self.loop, self.buffer = path, loop, buffer
+        self.height, self.width = first.shape[:2]
+        self.ended = False
+        self.thread: FrameThread | None = None
+
+    def start(self) -> "VideoFrames":
+        """Start the decoding thread (idempotent)."""
+        if self.thread is None:
+            self.thread = FrameThread(_decode(self.path, self.fps, self.loop), f"video:{os.path.basename(self.path)}",
+                                      wait=True, buffer=self.buffer)
+            self.thread.start()
+        return self
+
+    def poll(self, timeout: float | None = 0.0) -> tuple[int, float, np.ndarray] | None:
+        """The next frame, or None if none is decoded yet (or the stream ended: see ``ended``).
+        ``timeout`` None waits as long as needed. Raises the decoder's error."""
+        if self.ended:
+            return None
+        self.start()
+        try:
+            item = self.thread.queue.get(timeout=timeout) if timeout != 0 else self.thread.queue.get_nowait()
+        except queue.Empty:
+            return None
+        if item is END:
+            self.ended = True
+            if self.thread.error is not None:
+                raise self.thread.error
+            return None
+        index, (t_s, rgb) = item
+        return index, t_s, rgb
+
+    def __iter__(self) -> Iterator[tuple[int, float, np.ndarray]]:
+        while (item := self.poll(timeout=None)) is not None:
+            yield item
+
+    def close(self) -> None:
+        """Stop the decoding thread and release the file."""
+        if self.thread is not None:
+            self.thread.stop()
+            self.thread.join(timeout=5.0)
+            if not self.thread.is_alive():
+                self.thread.frames.close()  # releases the capture of an unfinished pass
+
+    def __enter__(self) -> "VideoFrames":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
