@@ -39,7 +39,8 @@ def test_bench_slam_quick_json(capsys):
     s = result["sustained"]["default"]
     assert s["published"] == 60 and 0 < s["tracked"] <= s["processed"] <= 60
     assert s["dropped"] == 60 - s["processed"] and s["failures"] == 0
-    assert _positive(s["pose_rate_hz"]) and s["pose_rate_hz"] < 30
+    # receive-time rate: poses bunched by a loaded scheduler can briefly beat the 30 Hz input, never by 2x
+    assert _positive(s["pose_rate_hz"]) and s["pose_rate_hz"] < 60
     assert s["dropped"] > 0  # a 30 Hz stream outruns a ~10 Hz tracker: latest-policy inputs shed frames
 
     o = result["overhead"]

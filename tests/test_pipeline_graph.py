@@ -8,12 +8,10 @@ import json
 from probeless.tools import bench_pipeline
 
 
-def test_full_pipeline_runs_and_reports_every_stage(capsys):
-    assert bench_pipeline.main(json_out=True, quick=True) == 0
-    out = capsys.readouterr().out.strip().splitlines()
-    assert len(out) == 1
-    r = json.loads(out[0])
-    assert r["augmented_frames"] >= 20  # 2 s of 30 Hz RGB: most frames come out augmented
+def test_full_pipeline_runs_and_reports_every_stage():
+    # 3 s of scene: several 1 s diagnostics windows per node even when the machine is loaded
+    r = json.loads(json.dumps(bench_pipeline.run_bench(seconds=3.0)))
+    assert r["augmented_frames"] >= 30  # 3 s of 30 Hz RGB: most frames come out augmented
     stages = {s["stage"]: s for s in r["stages"]}
     for name in ("SLAM (track + map)", "occlusion mask", "coarse texture update", "brightness estimation",
                  "cubemap render (coarse + dense)", "IBL render", "compositing"):
