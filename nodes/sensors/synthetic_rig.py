@@ -55,11 +55,14 @@ class SyntheticRig(Node):
         self.period_s = (p.duration_s or self.scene.duration) + 1.0 / self.scene.rgbd.fps
         self.lockstep = p.rate == 0
         self.passes, self.next, self.t0 = 0, 0, None
-        origin_ns = self.ctx.now_ns() if p.stamps == "wall" else 0
-        self.ctx.publish("floorplan", shift_stamp(self.rig.floorplan(), origin_ns))
+        self.floorplan_sent = False
         self.timer = self.ctx.create_timer(0.002, self._step, name="render")
 
     def _step(self) -> None:
+        if not self.floorplan_sent:  # from the first timer tick: after the readiness barrier, so no subscriber misses it
+            origin_ns = self.ctx.now_ns() if self.params.stamps == "wall" else 0
+            self.ctx.publish("floorplan", shift_stamp(self.rig.floorplan(), origin_ns))
+            self.floorplan_sent = True
         if self.next >= len(self.events):
             self._at_end()
             return
