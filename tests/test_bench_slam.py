@@ -45,8 +45,8 @@ def test_bench_slam_quick_json(capsys):
 
     o = result["overhead"]
     assert o["tracked_min"] == o["frames"] == 10  # every frame tracked, lockstep and pipelined
-    for key in ("node_fps", "pipelined_fps", "bare_fps", "bare_decoding_fps", "node_throughput_ratio"):
+    for key in ("node_fps", "lockstep_fps", "bare_fps", "bare_decoding_fps", "node_throughput_ratio"):
         assert _positive(o[key]), key
     assert math.isclose(o["node_throughput_ratio"], o["node_fps"] / o["bare_fps"], rel_tol=1e-3)
-    assert math.isclose(o["pipelined_throughput_ratio"], o["pipelined_fps"] / o["bare_fps"], rel_tol=1e-3)
+    assert math.isclose(o["lockstep_throughput_ratio"], o["lockstep_fps"] / o["bare_fps"], rel_tol=1e-3)
     assert result["goals_met"]["node_throughput_ratio"] == (o["node_throughput_ratio"] >= 0.9)

@@ -269,6 +269,26 @@ def test_node_publishes_poses_states_model_and_trajectory(tmp_path):
     assert {"track", "integrate", "raycast", "extract_points", "extract_mesh"} <= set(ctx.timings.windows)
 
 
+def test_frames_before_camera_info_and_initial_pose_are_held_not_lost():
+    """The race of a fast replay: rgb/depth of the first frames reach the node before camera_info and the
+    initial pose (separate sockets). The frames are held and tracked in order, from their own pose."""
+    inputs, seq = _node_inputs(4)  # frame 3 has empty depth; 0..2 are good
+    first = [(n, m) for n, m in inputs if m.header.seq < 3]
+    late = [(n, m) for n, m in first if n in ("camera_info", "initial_pose")]
+    early = [(n, m) for n, m in first if n in ("rgb", "depth")]
+    ctx = run_node(DenseSlamNode, early + late, {"wait_for_initial_pose": True})
+    poses = ctx.outputs("pose")
+    assert [p.header.stamp_ns for p in poses] == [f.stamp_ns for f in seq.frames[:3]]
+    np.testing.assert_allclose(poses[0].target_from_source, seq.frames[0].pose)  # its own initial pose
+    assert ctx.outputs("tracking")[-1].frames_skipped == 0
+    # a pose newer than every held frame starts the model at the newest held frame; older ones are skipped
+    pose2 = [(n, m) for n, m in late if n == "camera_info" or m.header.seq == 2]
+    ctx = run_node(DenseSlamNode, [x for x in early if x[1].header.seq < 2] + pose2, {"wait_for_initial_pose": True})
+    poses = ctx.outputs("pose")
+    assert [p.header.stamp_ns for p in poses] == [seq.frames[1].stamp_ns]
+    assert ctx.outputs("tracking")[-1].frames_skipped == 1
+
+
 def test_slam_run_command_writes_the_trajectory(tmp_path, capsys):
     ap = argparse.ArgumentParser()
     add_slam_parser(ap.add_subparsers(dest="command", required=True))

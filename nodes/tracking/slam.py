@@ -3,8 +3,11 @@
 Inputs: ``rgb`` and ``depth`` (paired by identical stamps, or within ``slop_s``), ``camera_info``
 (pinhole intrinsics; frames before it are skipped) and optionally ``initial_pose`` (world_from_rgbd
 of the first frame: the pose stamped like it, else the latest received; a ground-truth stream
-can be wired here, later poses are ignored). With ``wait_for_initial_pose`` the first frame is
-held until its pose (or a newer one) arrives; without a pose the ``initial_pose`` param applies.
+can be wired here, later poses are ignored). With ``wait_for_initial_pose`` the first frames are
+held (up to ``HOLD_MAX``, in order) until a pose arrives: the frame stamped like it starts the model
+(or, when the pose is newer than every held frame, the newest held frame), earlier frames are
+skipped and later ones follow in order, so a pose that loses the race with its frame loses nothing.
+Without a pose the ``initial_pose`` param applies.
 
 Outputs: ``pose`` (world_from_rgbd, stamped with the RGB-D frame, only for tracked frames),
 ``tracking`` (:class:`TrackingState` for every frame processed) and the model, extracted from
@@ -44,6 +47,7 @@ from probeless.runtime.sync import ApproximateTimeSync, ExactTimeSync
 from probeless.tracking.dense import DenseSlam, SlamParams
 from probeless.tracking.tum import write_tum_lines
 
+HOLD_MAX = 30  # first pairs held while camera_info or the initial pose is still on its way
 LOG_EVERY = 30  # while tracking stays lost, log one failure in this many
 
 
@@ -92,7 +96,8 @@ class DenseSlamNode(Node):
         self.info: CameraInfo | None = None
         self.init_poses: dict[int, np.ndarray] = {}
         self.latest_init: np.ndarray | None = None
-        self.held: dict | None = None   # the first pair, waiting for its initial pose
+        self.latest_init_ns: int | None = None  # stamp of latest_init
+        self.held: list[dict] = []      # the first pairs, in order, waiting for an initial pose
         self.closed: set[str] = set()   # inputs at end of stream
         self.counts = dict(tracked=0, lost=0, invalid=0, skipped=0, dropped=0, consecutive=0, last_good=0)
         self.last_rgb_seq: int | None = None
@@ -111,6 +116,8 @@ class DenseSlamNode(Node):
     def on_input(self, name: str, msg) -> None:
         if name == "camera_info":
             self.info = msg
+            if self.slam is None:
+                self._release_held()
         elif name == "initial_pose":
             self._on_initial_pose(msg)
         else:
@@ -129,9 +136,31 @@ class DenseSlamNode(Node):
         self.init_poses[stamp] = msg.target_from_source
         while len(self.init_poses) > 256:
             self.init_poses.pop(next(iter(self.init_poses)))
-        held, self.held = self.held, None
-        if held is not None and stamp >= held["rgb"].header.stamp_ns:
-            self._on_pair(held)  # its own pose (same stamp) or, if that never came, this newer one
+        self.latest_init_ns = stamp
+        self._release_held()
+
+    def _waiting(self, pair: dict) -> bool:
+        """True while the model cannot start at ``pair``: no camera_info yet, or no initial pose for it yet."""
+        if self.info is None:
+            return True
+        t = pair["rgb"].header.stamp_ns
+        newer_pose = self.latest_init_ns is not None and self.latest_init_ns >= t
+        return self.params.wait_for_initial_pose and t not in self.init_poses and not newer_pose
+
+    def _release_held(self) -> None:
+        """Process the held pairs in order once the model can start; the rest stay held."""
+        held, self.held = self.held, []
+        for k, pair in enumerate(held):
+            if self.slam is None:
+                if self._waiting(pair):
+                    self.held = held[k:]
+                    return
+                t = pair["rgb"].header.stamp_ns
+                if (self.params.wait_for_initial_pose and t not in self.init_poses
+                        and any(h["rgb"].header.stamp_ns <= self.latest_init_ns for h in held[k + 1:])):
+                    self._skip(pair["rgb"].header, "a later frame is nearer the initial pose")
+                    continue
+            self._on_pair(pair)  # starts the model (own pose, the nearest newer one, or the param), then tracks
 
     def _unmatched(self, name: str, msg, reason: str) -> None:
         if name == "rgb":
@@ -144,19 +173,17 @@ class DenseSlamNode(Node):
     def _start(self, msgs: dict) -> bool:
         """Create the SLAM model at the first usable frame; False (frame skipped or held) until it can."""
         rgb, info, p = msgs["rgb"], self.info, self.params
-        if info is None:
-            self._skip(rgb.header, "no camera_info yet")
+        if self._waiting(msgs):
+            self.held.append(msgs)  # its camera_info or pose may come just after it
+            if len(self.held) > HOLD_MAX:
+                self._skip(self.held.pop(0)["rgb"].header,
+                           "no camera_info yet" if info is None else "waiting for initial_pose")
             return False
         if info.model != "pinhole" or (info.width, info.height) != (rgb.width, rgb.height):
             self._skip(rgb.header, f"camera_info is {info.model} {info.width}x{info.height}, need pinhole "
                                    f"{rgb.width}x{rgb.height}")
             return False
         T0 = self.init_poses.get(rgb.header.stamp_ns)
-        if T0 is None and p.wait_for_initial_pose:
-            if self.held is not None:
-                self._skip(self.held["rgb"].header, "waiting for initial_pose")
-            self.held = msgs  # its pose may come just after it
-            return False
         T0 = T0 if T0 is not None else self.latest_init if self.latest_init is not None else self.T0
         self.slam = DenseSlam(self.slam_params, info.K, info.width, info.height, T0, timed=self.ctx.timed)
         self.frame_id = rgb.header.frame_id or "rgbd"
@@ -212,11 +239,15 @@ class DenseSlamNode(Node):
         self.closed.add(name)
         if {"rgb", "depth"} <= self.closed:  # not before: the other input may still hold this frame's partner
             self.sync.flush()
-        if name == "initial_pose" and self.held is not None:
-            self._skip(self.held["rgb"].header, "initial_pose ended before a pose arrived")
-            self.held = None
+        if name == "initial_pose" and self.held and self.slam is None and self.params.wait_for_initial_pose:
+            waiting, self.held = self.held, []
+            for pair in waiting:
+                self._skip(pair["rgb"].header, "initial_pose ended before a pose arrived")
 
     def close(self) -> None:
+        for pair in getattr(self, "held", ()):
+            self._skip(pair["rgb"].header, "still waiting for camera_info or initial_pose at the end")
+        self.held = []
         if getattr(self, "slam", None) is not None:
             if self.params.model_output != "none":
                 self._publish_model()  # the final model, whatever the period
