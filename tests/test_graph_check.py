@@ -75,6 +75,18 @@ def test_include_namespaces_and_args():
     assert graph.nodes["left_sink"].params == {"out_dir": "out/include/left"}
 
 
+def test_arg_defaults_take_dirname_and_env_substitutions(tmp_path, monkeypatch):
+    monkeypatch.setenv("PROBELESS_TEST_DIR", "from-env")
+    g = tmp_path / "sub" / "g.yaml"
+    g.parent.mkdir()
+    g.write_text("args:\n  out: $(dirname)/out\n  tag: $(env PROBELESS_TEST_DIR)\n"
+                 "nodes:\n  - id: sink\n    node: summary_sink\n    params: {out_dir: $(arg out)/$(arg tag)}\n")
+    graph = parse_graph(g)
+    assert graph.nodes["sink"].params == {"out_dir": f"{g.parent}/out/from-env"}
+    graph = parse_graph(g, {"out": "given"})  # an override is taken as given, not substituted again
+    assert graph.nodes["sink"].params == {"out_dir": "given/from-env"}
+
+
 def test_cli_overrides_are_typed_and_unknown_ones_rejected(capsys):
     graph = load_checked(str(GRAPHS.parent.parent / "launch/demo_runtime.yaml"), {"frames": 5})
     assert graph.nodes["camera"].params["count"] == 5

@@ -114,6 +114,9 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
         if key not in TOP_KEYS:
             err(f"unknown top-level key{_suggest(key, TOP_KEYS)}", doc.line_of(key), key=key)
     args = resolve_args(doc.get("args"), overrides, err, doc.line_of("args"), is_root=not stack)
+    defaults = Substituter({}, path.parent, err)  # a default may use $(dirname) and $(env), not $(arg)
+    args = {k: defaults(v, doc.line_of("args")) if k not in overrides and isinstance(v, str) and "$(arg" not in v
+            else v for k, v in args.items()}
     if not stack:
         graph.args = dict(args)
     subst = Substituter(args, path.parent, err)
