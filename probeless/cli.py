@@ -102,6 +102,10 @@ def cmd_bench(ns: argparse.Namespace) -> int:
 
         return bench_coarse(json_out=ns.json, quick=ns.quick, atlas_size=ns.atlas_size, frames=ns.frames,
                             scene=ns.scene, serial_texels=ns.serial_texels)
+    if ns.what == "pano":
+        from probeless.tools.bench_pano import main as bench_pano
+
+        return bench_pano(json_out=ns.json, quick=ns.quick)
     raise ProbelessError(f"unknown benchmark {ns.what!r}")
 
 
@@ -200,6 +204,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_coarse_parser(sub)
 
+    from probeless.pano.cli import add_pano_parser
+
+    add_pano_parser(sub)
+
     c = sub.add_parser("graph", help="draw a launch graph: nodes, topics, message types")
     c.add_argument("graph")
     c.add_argument("args", nargs="*", metavar="name:=value")
@@ -208,7 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_graph)
 
     c = sub.add_parser("bench", help="run a benchmark and print its figures")
-    c.add_argument("what", choices=("bus", "bag", "sensors", "slam", "coarse", "pipeline", "dense"))
+    c.add_argument("what", choices=("bus", "bag", "sensors", "slam", "coarse", "pipeline", "dense", "pano"))
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.add_argument("--quick", action="store_true", help="fewer messages (for smoke tests)")
     c.add_argument("--atlas-size", type=int, default=2048, help="coarse: atlas side [texels] (default 2048)")
