@@ -17,6 +17,9 @@ demo: setup
 	cat out/demo/accuracy.txt
 	.venv/bin/probeless bench pipeline --quick > out/demo/timing.txt
 	cat out/demo/timing.txt
+	@if [ -f ../shared/data/video360/bled_lake_360_timelapse_720p_vp9.webm ]; then \
+		.venv/bin/probeless launch launch/pano360_ibl.yaml out_dir:=out/demo/pano360; \
+	else echo "pano360: ../shared/data/video360/ not found: the 360° video IBL graph is skipped"; fi
 
 test: setup
 	.venv/bin/python -m pytest -q

@@ -119,11 +119,13 @@ def test_slam_flags_name_real_slam_params_fields():
     defaults = {f.name: f.default for f in dataclasses.fields(SlamParams)}
     for name, kind in SLAM_FLAGS.items():
         assert name in defaults, f"--{name} is not a SlamParams field"
-        assert type(defaults[name]) is kind, f"--{name}: SlamParams default is {defaults[name]!r}"
+        want = tuple if kind is list else kind  # list: a fixed-length float tuple given as 3 numbers
+        assert type(defaults[name]) is want, f"--{name}: SlamParams default is {defaults[name]!r}"
     root = argparse.ArgumentParser()
     add_eval_parser(root.add_subparsers(dest="command"))
     ns = root.parse_args(["eval", "slam", "x", "--voxel-size", "0.02", "--iterations", "4", "2",
-                          "--no-raycast-shift", "--integrate-every", "3"])
+                          "--no-raycast-shift", "--integrate-every", "3", "--grid-rotation-deg", "1", "2.5", "3"])
     p = slam_params(ns)
     assert (p.voxel_size, p.iterations, p.raycast_shift, p.integrate_every) == (0.02, (4, 2), False, 3)
+    assert p.grid_rotation_deg == (1.0, 2.5, 3.0)
     assert p.depth_max == defaults["depth_max"]  # unset flags keep the default

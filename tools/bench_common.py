@@ -19,14 +19,14 @@ def finite_median(vals: list[float]) -> float:
     return float(statistics.median(vals)) if vals else float("nan")
 
 
-def rounded(obj: Any) -> Any:
-    """Floats rounded to 4 places (non-finite -> None), recursively through dicts and lists."""
+def rounded(obj: Any, places: int = 4) -> Any:
+    """Floats rounded to ``places`` (non-finite -> None), recursively through dicts and lists."""
     if isinstance(obj, float):
-        return round(obj, 4) if math.isfinite(obj) else None
+        return round(obj, places) if math.isfinite(obj) else None
     if isinstance(obj, dict):
-        return {k: rounded(v) for k, v in obj.items()}
+        return {k: rounded(v, places) for k, v in obj.items()}
     if isinstance(obj, list):
-        return [rounded(v) for v in obj]
+        return [rounded(v, places) for v in obj]
     return obj
 
 

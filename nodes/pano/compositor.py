@@ -90,13 +90,16 @@ class PanoCompositor(Node):
         operator: str = param("paper", choices=tuple(DISPLAY_FOR_OPERATOR), doc="the itmo operator upstream "
                               "(only for display: auto)")
         background: str = param("gpu", choices=("gpu", "remap"), doc="background view: GPU pass or cv2.remap")
+        lod_bias: float = param(0.0, min=-4.0, max=4.0, doc="glossy ring samples' mip level offset: 0 = the "
+                                                            "paper's rule (texel spacing = sample spacing), -1 = "
+                                                            "one level finer (closer to the Phong lobe integral)")
         near: float = param(0.02, min=1e-4, max=10.0, doc="near clip plane [m]")
         far: float = param(100.0, min=0.1, max=1e5, doc="far clip plane [m]")
 
     def setup(self) -> None:
         p = self.params
         objects = [object_from_dict(resolve_mesh(o), f"objects[{i}]") for i, o in enumerate(p.objects)]
-        self.renderer = PanoRenderer(objects, near=p.near, far=p.far)
+        self.renderer = PanoRenderer(objects, lod_bias=p.lod_bias, near=p.near, far=p.far)
         default = HMD_EYE_SIZE if p.mode == "stereo" else MONO_SIZE
         self.size = (p.width or default[0], p.height or default[1])
         self.display = DISPLAY_FOR_OPERATOR[p.operator] if p.display == "auto" else p.display

@@ -44,8 +44,16 @@ from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.nodes.tracking.slam_io import open_trajectory, pose_param, srgb8
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ApproximateTimeSync, ExactTimeSync
+from probeless.errors import SchemaError
 from probeless.tracking.dense import DenseSlam, SlamParams
+from probeless.tracking.slam_params import GRID_ROTATION_DEG
 from probeless.tracking.tum import write_tum_lines
+
+def _angles(values, node_id: str) -> tuple[float, float, float]:
+    if len(values) != 3 or not all(np.isfinite(float(v)) for v in values):
+        raise SchemaError(f"node {node_id!r}: key 'grid_rotation_deg': needs 3 finite angles, got {list(values)}")
+    return tuple(float(v) for v in values)
+
 
 HOLD_MAX = 30  # first pairs held while camera_info or the initial pose is still on its way
 LOG_EVERY = 30  # while tracking stays lost, log one failure in this many
@@ -72,6 +80,8 @@ class DenseSlamNode(Node):
         max_translation_m: float = param(0.3, min=0.0, doc="larger motion per frame = lost [m]")
         max_rotation_deg: float = param(30.0, min=0.0, max=180.0, doc="larger rotation per frame = lost [deg]")
         min_valid_fraction: float = param(0.05, min=0.0, max=1.0, doc="less valid depth = invalid input [fraction]")
+        grid_rotation_deg: tuple[float, ...] = param(GRID_ROTATION_DEG, doc="TSDF grid axes against the world, "
+                                                     "xyz Euler [deg] (3 values; see SlamParams)")
         initial_pose: tuple[float, ...] = param((), doc="world_from_rgbd of the first frame: tx ty tz qx qy qz qw; "
                                                         "empty = identity (or the initial_pose input)")
         wait_for_initial_pose: bool = param(False, doc="skip frames until the initial_pose input has a pose")
@@ -90,6 +100,7 @@ class DenseSlamNode(Node):
             depth_diff=p.depth_diff, trunc_voxel_multiplier=p.trunc_voxel_multiplier, scale=p.scale,
             integrate_every=p.integrate_every, raycast_every=p.raycast_every, min_fitness=p.min_fitness,
             max_translation_m=p.max_translation_m, max_rotation_deg=p.max_rotation_deg,
+            grid_rotation_deg=_angles(p.grid_rotation_deg, self.ctx.node_id),
             min_valid_fraction=p.min_valid_fraction)
         self.T0 = pose_param(p.initial_pose, self.ctx.node_id)
         self.slam: DenseSlam | None = None

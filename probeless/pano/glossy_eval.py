@@ -25,7 +25,8 @@ import numpy as np
 from probeless.errors import ProbelessError
 from probeless.pano import glossy
 from probeless.pano.glossy_figure import LUMA, ROUGHNESS, glossy_figure
-from probeless.pano.glossy_report import format_table, json_ready
+from probeless.pano.glossy_report import format_table
+from probeless.tools.bench_common import rounded
 from probeless.pano.rings import lobe_half_angle, phong_exponent, ring_pattern
 from probeless.pano.sources import read_panorama
 from probeless.progress import progress
@@ -155,5 +156,5 @@ def cmd_glossy(ns: Any) -> int:
                       mc_samples=ns.figure_mc_samples, seed=ns.seed)
         res["figure"] = ns.figure
         print(f"wrote {ns.figure}", file=sys.stderr)
-    print(json.dumps(json_ready(res)) if ns.json else format_table(res))
+    print(json.dumps(rounded(res, 6)) if ns.json else format_table(res))
     return 0

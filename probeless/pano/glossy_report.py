@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 
 
 def _pct(err: dict[str, float]) -> str:
@@ -36,14 +35,3 @@ def format_table(res: dict[str, Any]) -> str:
     for r, v in res["summary"].items():
         lines.append(f"{r:>5s}" + "".join(f" {_pct(v[k]):>13s}" for k, _ in cols) + f" {v['glossy_speedup']:7.0f}")
     return "\n".join(lines)
-
-
-def json_ready(obj: Any) -> Any:
-    """``obj`` with floats rounded to 6 places and non-finite ones as None, recursively."""
-    if isinstance(obj, float):
-        return round(obj, 6) if np.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: json_ready(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [json_ready(v) for v in obj]
-    return obj

@@ -86,8 +86,8 @@ class PanoRenderer:
     """Renders a fixed set of objects (:class:`probeless.ibl.render.IblObject`) lit by one HDR frame."""
 
     def __init__(self, objects, *, ctx: moderngl.Context | None = None, max_ring_samples: int = 64,
-                 per_ring: int = 6, rings_inside: int = 3, rings_outside: int = 3, near: float = 0.02,
-                 far: float = 100.0):
+                 per_ring: int = 6, rings_inside: int = 3, rings_outside: int = 3, lod_bias: float = 0.0,
+                 near: float = 0.02, far: float = 100.0):
         ids = [o.id for o in objects]
         if len(set(ids)) != len(ids):
             raise ProbelessError(f"PanoRenderer: object ids must be unique, got {ids}")
@@ -101,7 +101,8 @@ class PanoRenderer:
         self.bg_prog = load_program(self.ctx, "pano_background", shader_dir=SHADERS)
         self.bg_vao = self.ctx.vertex_array(self.bg_prog, [])
         self.objects = {o.id: _Gpu(self.ctx, self.prog, o) for o in objects}
-        self.ring_args = dict(per_ring=per_ring, rings_inside=rings_inside, rings_outside=rings_outside)
+        self.ring_args = dict(per_ring=per_ring, rings_inside=rings_inside, rings_outside=rings_outside,
+                              lod_bias=float(lod_bias))  # 0 = the paper's mip rule (glossy.ring_pattern)
         self.max_ring_samples, self.near, self.far = max_ring_samples, near, far
         self.env = self.diffuse = self.frame = None
         self._targets: dict = {}

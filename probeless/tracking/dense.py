@@ -26,6 +26,15 @@ from probeless.tracking.slam_params import SlamParams, StepResult  # noqa: F401 
 DEVICE = "CPU:0"
 
 
+def grid_from_world(rotation_deg) -> np.ndarray:
+    """(4, 4) rotation of the TSDF grid's axes against the world's (xyz Euler angles [deg])."""
+    from scipy.spatial.transform import Rotation
+
+    G = np.eye(4)
+    G[:3, :3] = Rotation.from_euler("xyz", np.asarray(rotation_deg, np.float64), degrees=True).as_matrix()
+    return G
+
+
 class DenseSlam:
     """One tensor SLAM model on CPU:0 (pure: no bus). Frames are (H, W) = (height, width)."""
 
@@ -43,8 +52,9 @@ class DenseSlam:
         T0 = np.array(world_from_rgbd0, dtype=np.float64)
         if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
             raise ProbelessError(f"DenseSlam: initial pose must be a finite 4x4 matrix, got {T0.shape}")
+        self.grid_from_world = grid_from_world(params.grid_rotation_deg)
         self.model = o3d.t.pipelines.slam.Model(params.voxel_size, params.block_resolution, params.block_count,
-                                                o3d.core.Tensor(T0), self.device)
+                                                o3d.core.Tensor(self.grid_from_world @ T0), self.device)
         h, w = len(range(0, height, self.n)), len(range(0, width, self.n))
         K_t = o3d.core.Tensor(scaled_K(K, self.n))
         self.input = o3d.t.pipelines.slam.Frame(h, w, K_t, self.device)
@@ -135,7 +145,8 @@ class DenseSlam:
     def _map(self, T: np.ndarray, depth_scale: float, costs: dict) -> None:
         """Integrate and/or raycast the tracked frame at pose T, as due."""
         p, o3c = self.params, self.o3d.core
-        self.model.update_frame_pose(self.tracked, o3c.Tensor(T))
+        Tg = self.grid_from_world @ T  # the model lives in grid coordinates
+        self.model.update_frame_pose(self.tracked, o3c.Tensor(Tg))
         if self.tracked % p.integrate_every == 0:
             with self._stage("integrate", costs):
                 self.model.integrate(self.input, depth_scale, p.depth_max, p.trunc_voxel_multiplier)
@@ -143,7 +154,7 @@ class DenseSlam:
         if self.tracked % p.raycast_every == 0:
             with self._stage("raycast", costs):
                 if p.raycast_shift:
-                    self.model.transformation_frame_to_world = o3c.Tensor(raycast_pose(T, p.voxel_size))
+                    self.model.transformation_frame_to_world = o3c.Tensor(raycast_pose(Tg, p.voxel_size))
                 # Open3D's default weight threshold min(frame id, 3) assumes one integration per frame
                 self.model.synthesize_model_frame(self.raycast, depth_scale, p.depth_min, p.depth_max,
                                                   p.trunc_voxel_multiplier, False, float(min(self.integrated - 1, 3)))
@@ -182,8 +193,16 @@ class DenseSlam:
 
     def extract_pointcloud(self, max_points: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(points (N, 3) float32 [m, world], colours (N, 3) float32 0..1), at most ``max_points``."""
-        return extract_pointcloud(self.model, self.extraction_threshold(), max_points)
+        pts, cols = extract_pointcloud(self.model, self.extraction_threshold(), max_points)
+        return self._to_world(pts), cols
+
+    def _to_world(self, pts: np.ndarray) -> np.ndarray:
+        G = self.grid_from_world
+        if np.array_equal(G, np.eye(4)):
+            return pts
+        return np.ascontiguousarray((pts.astype(np.float64) @ G[:3, :3]).astype(np.float32))  # G^-1 = G^T
 
     def extract_mesh(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(vertices (V, 3) float32 [m, world], triangles (T, 3) int32, colours (V, 3) float32 0..1)."""
-        return extract_mesh(self.model, self.extraction_threshold())
+        v, tri, cols = extract_mesh(self.model, self.extraction_threshold())
+        return self._to_world(v), tri, cols

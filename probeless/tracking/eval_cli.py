@@ -22,7 +22,7 @@ from probeless.progress import stdout_to_stderr
 SLAM_FLAGS: dict[str, type] = {
     "voxel_size": float, "depth_max": float, "depth_min": float, "depth_diff": float,
     "trunc_voxel_multiplier": float, "integrate_every": int, "raycast_every": int, "scale": float,
-    "min_fitness": float, "iterations": tuple, "raycast_shift": bool,
+    "min_fitness": float, "iterations": tuple, "raycast_shift": bool, "grid_rotation_deg": list,
 }
 
 
@@ -49,7 +49,8 @@ def add_eval_parser(sub: Any) -> Any:
             g.add_argument(flag, dest=dest, default=None, action=argparse.BooleanOptionalAction)
         else:
             g.add_argument(flag, dest=dest, default=None, metavar=name.upper(),
-                           **({"nargs": "+", "type": int} if kind is tuple else {"type": kind}))
+                           **({"nargs": "+", "type": int} if kind is tuple else
+                              {"nargs": 3, "type": float} if kind is list else {"type": kind}))
     c.set_defaults(func=cmd_eval_slam)
     return evals
 
@@ -61,6 +62,8 @@ def slam_params(ns: argparse.Namespace):
     given = {k: getattr(ns, "slam_" + k) for k in SLAM_FLAGS if getattr(ns, "slam_" + k, None) is not None}
     if "iterations" in given:
         given["iterations"] = tuple(given["iterations"])
+    if "grid_rotation_deg" in given:
+        given["grid_rotation_deg"] = tuple(given["grid_rotation_deg"])
     return SlamParams(**given)
 
 
