@@ -82,6 +82,8 @@ class DenseSlamNode(Node):
         min_valid_fraction: float = param(0.05, min=0.0, max=1.0, doc="less valid depth = invalid input [fraction]")
         grid_rotation_deg: tuple[float, ...] = param(GRID_ROTATION_DEG, doc="TSDF grid axes against the world, "
                                                      "xyz Euler [deg] (3 values; see SlamParams)")
+        integrate_nearest_pixel: bool = param(True, doc="integrate each voxel from its nearest pixel (Open3D "
+                                                        "alone takes the pixel up-left of it)")
         initial_pose: tuple[float, ...] = param((), doc="world_from_rgbd of the first frame: tx ty tz qx qy qz qw; "
                                                         "empty = identity (or the initial_pose input)")
         wait_for_initial_pose: bool = param(False, doc="skip frames until the initial_pose input has a pose")
@@ -101,6 +103,7 @@ class DenseSlamNode(Node):
             integrate_every=p.integrate_every, raycast_every=p.raycast_every, min_fitness=p.min_fitness,
             max_translation_m=p.max_translation_m, max_rotation_deg=p.max_rotation_deg,
             grid_rotation_deg=_angles(p.grid_rotation_deg, self.ctx.node_id),
+            integrate_nearest_pixel=p.integrate_nearest_pixel,
             min_valid_fraction=p.min_valid_fraction)
         self.T0 = pose_param(p.initial_pose, self.ctx.node_id)
         self.slam: DenseSlam | None = None

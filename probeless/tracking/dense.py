@@ -56,8 +56,14 @@ class DenseSlam:
         self.model = o3d.t.pipelines.slam.Model(params.voxel_size, params.block_resolution, params.block_count,
                                                 o3d.core.Tensor(self.grid_from_world @ T0), self.device)
         h, w = len(range(0, height, self.n)), len(range(0, width, self.n))
-        K_t = o3d.core.Tensor(scaled_K(K, self.n))
-        self.input = o3d.t.pipelines.slam.Frame(h, w, K_t, self.device)
+        Ks = scaled_K(K, self.n)
+        K_t = o3d.core.Tensor(Ks)
+        # Open3D's integration reads pixel (int(u), int(v)) of each voxel's projection, i.e. the pixel
+        # half a pixel up-left of the nearest one on average: half a pixel more on the principal
+        # point makes it the nearest (the input Frame's intrinsics serve integration only).
+        K_int = Ks.copy()
+        K_int[:2, 2] += 0.5 if params.integrate_nearest_pixel else 0.0
+        self.input = o3d.t.pipelines.slam.Frame(h, w, o3d.core.Tensor(K_int), self.device)
         self.raycast = o3d.t.pipelines.slam.Frame(h, w, K_t, self.device)
         # the raycast carries no colour (point-to-plane tracking ignores it): a placeholder avoids Open3D's warning
         self.raycast.set_data("color", o3d.core.Tensor(np.zeros((h, w, 3), np.float32)))

@@ -23,6 +23,7 @@ SLAM_FLAGS: dict[str, type] = {
     "voxel_size": float, "depth_max": float, "depth_min": float, "depth_diff": float,
     "trunc_voxel_multiplier": float, "integrate_every": int, "raycast_every": int, "scale": float,
     "min_fitness": float, "iterations": tuple, "raycast_shift": bool, "grid_rotation_deg": list,
+    "integrate_nearest_pixel": bool,
 }
 
 

@@ -41,6 +41,7 @@ class SlamParams:
     iterations: tuple[int, ...] = (6, 3, 1)  # ICP iterations per pyramid level, coarse to fine
     raycast_shift: bool = True          # undo the raycast's mean half-voxel bias (slam_math.raycast_pose)
     grid_rotation_deg: tuple[float, float, float] = GRID_ROTATION_DEG  # TSDF grid axes vs world (below) [deg]
+    integrate_nearest_pixel: bool = True  # integrate each voxel from its nearest pixel, not Open3D's floor (dense.py)
 
     def __post_init__(self) -> None:
         n = round(1.0 / self.scale) if self.scale > 0 else 0
