@@ -345,6 +345,25 @@ def test_player_loop_keeps_stamps_increasing():
     np.testing.assert_array_equal(ctx.outputs("rgb")[3].data, ctx.outputs("rgb")[0].data)
 
 
+def test_player_preload_plays_the_same_messages_from_memory_across_loops():
+    params = {"path": str(SEVEN), "rate": 0, "max_frames": 3, "loop": True}
+    outs = []
+    for preload in (False, True):
+        node, ctx = make_node({**params, "preload": preload})
+        try:
+            step = ctx.timers[0][1]
+            while len(ctx.outputs("rgb")) < 7:
+                step()
+        finally:
+            node.close()
+        outs.append(ctx)
+    for name in ("rgb", "depth", "gt/rgbd_pose", "rgbd/camera_info"):
+        a, b = outs[0].outputs(name)[:7], outs[1].outputs(name)[:7]
+        assert [m.header.stamp_ns for m in a] == [m.header.stamp_ns for m in b]
+    for m, n in zip(outs[0].outputs("depth")[:7], outs[1].outputs("depth")[:7]):
+        np.testing.assert_array_equal(m.data, n.data)
+
+
 def test_player_wall_stamps_follow_the_node_clock(tum_dir, tmp_path):
     # a TUM copy whose depth is 7 ms after the colour: the offset must survive re-stamping
     for name in ("rgb", "depth", "intrinsics.json", "rgb.txt", "groundtruth.txt"):
