@@ -9,9 +9,7 @@ import pytest
 
 from probeless.tools.bench_bag import main
 
-
-def _positive(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+from bench_checks import positive
 
 
 @pytest.mark.timeout(120)
@@ -28,14 +26,14 @@ def test_bench_bag_quick_json(capsys):
     for c in ("none", "lz4"):
         e = result["record"][c]
         for key in ("ours_mb_per_s", "raw_mb_per_s", "record_ratio", "payload_mb", "file_mb"):
-            assert _positive(e[key]), (c, key)
+            assert positive(e[key]), (c, key)
         assert math.isclose(e["record_ratio"], e["ours_mb_per_s"] / e["raw_mb_per_s"], rel_tol=1e-3)
         assert e["lossless"] is True
         assert set(e["messages"]) == {"camera/rgb", "camera/depth", "camera/fisheye"}
         assert e["messages"]["camera/rgb"] == e["messages"]["camera/depth"] == 2 * e["messages"]["camera/fisheye"]
 
     rt = result["realtime"]
-    assert _positive(rt["duration_s"]) and rt["lossless"] is True
+    assert positive(rt["duration_s"]) and rt["lossless"] is True
     for c in ("none", "lz4"):
         assert rt["published"][c] == rt["recorded"][c]
         assert rt["published"][c]["camera/rgb"] == round(rt["duration_s"] * rt["rate_hz"])
@@ -51,5 +49,5 @@ def test_bench_bag_quick_json(capsys):
     ls = result["lockstep"]
     assert ls["identical"] is True
     assert len(ls["digest"]) == 64 and ls["digests"] == [ls["digest"], ls["digest"]]
-    assert _positive(ls["ms_per_message"])
+    assert positive(ls["ms_per_message"])
     assert isinstance(ls["nonlockstep_identical"], bool)

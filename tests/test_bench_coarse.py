@@ -16,13 +16,11 @@ from probeless.coarse.atlas import fit_atlas
 from probeless.coarse.texels import texel_map
 from probeless.scene.parse import load_scene
 
+from bench_checks import positive
+
 ROOT = Path(__file__).resolve().parents[1]
 STAGES = {"occlusion", "texture_update", "brightness_all", "brightness_sampled", "brightness_serial_subset",
           "brightness_serial_all_extrapolated", "inpaint_amortised", "inpaint_full", "readback_rgba8"}
-
-
-def _positive(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +53,7 @@ def test_keys_and_layout(result):
 def test_timings_positive_finite(result):
     for name, s in result["timings_ms"].items():
         for k in ("mean", "p50", "p95"):
-            assert _positive(s[k]), (name, k)
+            assert positive(s[k]), (name, k)
         assert s["n"] == (3 if name == "inpaint_full" else 2), name  # frame 0 is the warm-up
 
 

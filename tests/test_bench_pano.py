@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import io
 import json
-import math
 from contextlib import redirect_stdout
 from pathlib import Path
 
@@ -13,13 +12,11 @@ import numpy as np
 import pytest
 from probeless.tools import bench_pano
 
+from bench_checks import positive
+
 STAGES = {"itmo_gpu_paper", "diffuse_gpu_32x16", "diffuse_matmul_32x16", "upload", "mono_view", "stereo_view",
           "mono_render", "mono_background", "mono_composite", "stereo_render", "stereo_background",
           "stereo_composite", *(f"itmo_numpy_{op}" for op in bench_pano.NUMPY_ITMOS)}
-
-
-def _positive(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +35,7 @@ def test_keys_and_timings(result):
             "timings_ms", "goals_met", "source"} <= set(result)
     assert set(result["timings_ms"]) == STAGES
     for name, s in result["timings_ms"].items():
-        assert all(_positive(s[k]) for k in ("mean", "p50", "p95")), name
+        assert all(positive(s[k]) for k in ("mean", "p50", "p95")), name
         assert s["n"] == (q["stereo_frames"] if name.startswith("stereo") else q["frames"]) - 1, name  # warm-up
     assert result["objects"] == 5 and result["frames"] == q["frames"]
     if bench_pano.VIDEO.is_file():
