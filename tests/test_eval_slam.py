@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from test_metrics import horn_quaternion
 
 from probeless.errors import DatasetError
+from probeless.scene.parse import load_scene
 from probeless.tracking.eval_cli import add_eval_parser
 from probeless.tracking.tum import read_tum, write_tum
 
@@ -95,6 +96,22 @@ def test_eval_slam_on_a_synthetic_scene(capfd):
     assert report["failures"] == 0
     assert report["ate"]["n"] == 8 and report["ate"]["rmse"] < 0.02
     assert report["rpe"]["per_frame"]["n"] == 7
+    # the rig's depth is good to its range, so that is the depth_max used (no --depth-max given)
+    assert report["params"]["depth_max"] == load_scene(SCENE).rgbd.depth_max_m != 3.0
+
+
+def test_eval_slam_depth_consistency_scores_estimate_and_reference(capfd):
+    code = run_cli(["eval", "slam", str(SEVEN), "--max-frames", "6", "--no-progress", "--json",
+                    "--depth-consistency", "1", "5"])
+    assert code == 0
+    dc = json.loads(capfd.readouterr().out)["depth_consistency"]
+    assert sorted(dc) == ["1", "5"]
+    assert dc["1"]["estimate"]["pairs"] == 5 and dc["5"]["ground_truth"]["pairs"] == 1
+    for gap in dc.values():
+        for c in gap.values():  # Kinect depth: a few mm apart, most pixels consistent
+            assert 0.0005 < c["median_m"] < 0.02 and c["inlier_fraction"] > 0.8
+    assert run_cli(["eval", "slam", str(SEVEN), "--max-frames", "3", "--no-progress", "--depth-consistency", "2"]) == 0
+    assert "depth residual, frames 2 apart (median): estimate" in capfd.readouterr().out
 
 
 def test_eval_slam_human_report(capfd):
@@ -129,3 +146,6 @@ def test_slam_flags_name_real_slam_params_fields():
     assert (p.voxel_size, p.iterations, p.raycast_shift, p.integrate_every) == (0.02, (4, 2), False, 3)
     assert p.grid_rotation_deg == (1.0, 2.5, 3.0)
     assert p.depth_max == defaults["depth_max"]  # unset flags keep the default
+    ns = root.parse_args(["eval", "slam", "x", "--no-depth-weighting", "--depth-sigma", "0.002", "0.001", "0.5"])
+    p = slam_params(ns)
+    assert not p.depth_weighting and p.depth_sigma == (0.002, 0.001, 0.5)

@@ -15,12 +15,13 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from probeless.datasets.detect import open_rgbd, select
+from probeless.errors import ProbelessError
 from probeless.datasets.stream import rgbd_groups
 from probeless.messages.header import Header
 from probeless.nodes.tracking.slam import DenseSlamNode
 from probeless.runtime.testing import run_node
 from probeless.tracking.dense import DenseSlam, SlamParams
-from probeless.tracking.slam import run_slam
+from probeless.tracking.slam import run_slam, source_params
 from probeless.tracking.slam_cli import add_slam_parser
 from probeless.tracking.slam_input import prepare_frame
 from probeless.tracking.slam_math import predict_pose
@@ -132,6 +133,27 @@ def test_rendered_scene_follows_the_rig(tmp_path):
     assert position_errors(run.poses, run.gt).max() < 0.045
     assert np.linalg.norm(est_travel - gt_travel) < 0.15 * np.linalg.norm(gt_travel)
     assert rotation_errors_deg(run.poses, run.gt).max() < 2.0
+
+
+def test_a_scene_sets_depth_range_and_noise_from_its_rig_only_when_asked(tmp_path):
+    doc = copy.deepcopy(BASE)
+    doc["rig"]["rgbd"].update(width=160, height=120, fx=130, fy=130, cx=79.5, cy=59.5, depth_max_m=4.5,
+                              depth_noise_m=0.003)
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(yaml.safe_dump(doc))
+    sample = next(rgbd_samples(scene, max_frames=1)[0])
+    assert sample.depth_range_m == 4.5 and sample.depth_sigma == (0.003, 0.0, 0.0)
+    used = run_slam(scene, SlamParams(), max_frames=2, progress=False, source_depth_model=True).params
+    kept = run_slam(scene, SlamParams(), max_frames=2, progress=False).params
+    # constant noise: nothing to weight, so the weighting is off
+    assert used.depth_max == 4.5 and not used.depth_weighting
+    assert kept.depth_max == SlamParams().depth_max == 3.0 and kept.depth_weighting
+    assert source_params(SlamParams(), sample, explicit=["depth_max", "depth_weighting"]) == SlamParams()
+    kinect_like = dataclasses.replace(sample, depth_sigma=(0.001, 0.002, 0.5))
+    assert source_params(SlamParams(), kinect_like).depth_sigma == (0.001, 0.002, 0.5)
+    seven = next(rgbd_samples(SEVEN, max_frames=1)[0])  # a dataset says nothing
+    assert seven.depth_range_m is None and seven.depth_sigma is None
+    assert source_params(SlamParams(), seven) == SlamParams()
 
 
 def test_bad_frames_are_reported_and_tracking_resumes(seven):
@@ -339,7 +361,10 @@ def test_integration_takes_the_nearest_pixel_and_the_model_stays_in_world_coordi
     T0[:3, 3] = [0.3, -0.2, 0.1]
 
     def offset(nearest: bool) -> float:
-        slam = DenseSlam(SlamParams(integrate_nearest_pixel=nearest, grid_rotation_deg=grid_deg), K, 640, 480, T0)
+        # integration is under test: one plane leaves tracking 3 free directions (the pose slides along
+        # the plane, Open3D's ICP alone by ~0.7 m here), so the depth weighting's further steps are left out
+        slam = DenseSlam(SlamParams(integrate_nearest_pixel=nearest, grid_rotation_deg=grid_deg, depth_weighting=False),
+                         K, 640, 480, T0)
         for _ in range(5):
             assert slam.step(rgb, depth, 1000.0).state == "ok"
         pts, _ = slam.extract_pointcloud()
@@ -350,3 +375,13 @@ def test_integration_takes_the_nearest_pixel_and_the_model_stays_in_world_coordi
 
     nearest, floor = abs(offset(True)), abs(offset(False))
     assert nearest < 1e-3 and floor > 2e-3 and nearest < floor / 3
+
+
+def test_node_depth_noise_params_are_checked_by_name():
+    from probeless.errors import SchemaError
+
+    with pytest.raises(SchemaError, match="node 'node'.*'depth_sigma'"):
+        run_node(DenseSlamNode, [], {"depth_sigma": [0.0, 0.002, 0.4]})
+    with pytest.raises(ProbelessError, match="depth_sigma"):
+        SlamParams(depth_sigma=(0.001, -1.0, 0.0))
+    assert not SlamParams(depth_weighting=False, depth_sigma=(0.0, 0.0, 0.0)).depth_weighting  # unused: not checked

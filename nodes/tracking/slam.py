@@ -47,12 +47,20 @@ from probeless.runtime.sync import ApproximateTimeSync, ExactTimeSync
 from probeless.errors import SchemaError
 from probeless.tracking.dense import DenseSlam, SlamParams
 from probeless.tracking.slam_params import GRID_ROTATION_DEG
+from probeless.tracking.weighted_icp import KINECT_SIGMA
 from probeless.tracking.tum import write_tum_lines
 
 def _angles(values, node_id: str) -> tuple[float, float, float]:
     if len(values) != 3 or not all(np.isfinite(float(v)) for v in values):
         raise SchemaError(f"node {node_id!r}: key 'grid_rotation_deg': needs 3 finite angles, got {list(values)}")
     return tuple(float(v) for v in values)
+
+
+def _sigma(values, node_id: str) -> tuple[float, float, float]:
+    v = tuple(float(x) for x in values)
+    if len(v) != 3 or not all(np.isfinite(v)) or v[0] <= 0 or v[1] < 0:
+        raise SchemaError(f"node {node_id!r}: key 'depth_sigma': needs a b z0, finite, a > 0, b >= 0; got {list(values)}")
+    return v
 
 
 HOLD_MAX = 30  # first pairs held while camera_info or the initial pose is still on its way
@@ -84,6 +92,12 @@ class DenseSlamNode(Node):
                                                      "xyz Euler [deg] (3 values; see SlamParams)")
         integrate_nearest_pixel: bool = param(True, doc="integrate each voxel from its nearest pixel (Open3D "
                                                         "alone takes the pixel up-left of it)")
+        depth_weighting: bool = param(True, doc="refine each pose with points weighted by their depth noise "
+                                                "(off for depth whose noise does not grow with distance)")
+        depth_sigma: tuple[float, ...] = param(KINECT_SIGMA, doc="depth noise sigma(z) = a + b (z - z0)^2 [m]: "
+                                                                 "a b z0 (default Kinect v1)")
+        refine_iterations: int = param(10, min=1, max=100, doc="Gauss-Newton steps of the weighted refinement, at most")
+        refine_step: int = param(4, min=1, max=64, doc="every n-th pixel in the weighted refinement")
         initial_pose: tuple[float, ...] = param((), doc="world_from_rgbd of the first frame: tx ty tz qx qy qz qw; "
                                                         "empty = identity (or the initial_pose input)")
         wait_for_initial_pose: bool = param(False, doc="skip frames until the initial_pose input has a pose")
@@ -104,7 +118,9 @@ class DenseSlamNode(Node):
             max_translation_m=p.max_translation_m, max_rotation_deg=p.max_rotation_deg,
             grid_rotation_deg=_angles(p.grid_rotation_deg, self.ctx.node_id),
             integrate_nearest_pixel=p.integrate_nearest_pixel,
-            min_valid_fraction=p.min_valid_fraction)
+            min_valid_fraction=p.min_valid_fraction, depth_weighting=p.depth_weighting,
+            depth_sigma=_sigma(p.depth_sigma, self.ctx.node_id), refine_iterations=p.refine_iterations,
+            refine_step=p.refine_step)
         self.T0 = pose_param(p.initial_pose, self.ctx.node_id)
         self.slam: DenseSlam | None = None
         self.info: CameraInfo | None = None

@@ -4,7 +4,8 @@ See :mod:`probeless.tracking.slam` for the overview; this module holds the per-f
 Tracking is what ``Model.track_frame_to_model`` does (multi-scale RGB-D odometry of the input frame
 against the raycast frame) but started from a constant-velocity prediction of the pose instead of
 the raycast pose, so skipped frames (a node that drops what it cannot process) do not lose
-tracking. Odometry returns ``raycast_from_input``, so ``world_from_input = world_from_raycast @ it``
+tracking, and (``depth_weighting``) refined with every point weighted by its depth noise
+(:mod:`.weighted_icp`: Open3D weighs near and far structured-light depth alike). Odometry returns ``raycast_from_input``, so ``world_from_input = world_from_raycast @ it``
 where ``world_from_raycast`` is the pose the last raycast was made at.
 """
 
@@ -22,6 +23,7 @@ from probeless.tracking.model_extract import extract_mesh, extract_pointcloud, e
 from probeless.tracking.slam_input import prepare_frame
 from probeless.tracking.slam_math import motion, open3d_message, predict_pose, raycast_pose, scaled_K
 from probeless.tracking.slam_params import SlamParams, StepResult  # noqa: F401 (re-exported)
+from probeless.tracking.weighted_icp import refine_point_to_plane
 
 DEVICE = "CPU:0"
 
@@ -67,7 +69,7 @@ class DenseSlam:
         self.raycast = o3d.t.pipelines.slam.Frame(h, w, K_t, self.device)
         # the raycast carries no colour (point-to-plane tracking ignores it): a placeholder avoids Open3D's warning
         self.raycast.set_data("color", o3d.core.Tensor(np.zeros((h, w, 3), np.float32)))
-        self.K = K_t
+        self.K, self.K_np = K_t, Ks
         self.criteria = [o3d.t.pipelines.odometry.OdometryConvergenceCriteria(i) for i in params.iterations]
         self.loss = o3d.t.pipelines.odometry.OdometryLossParams(params.depth_diff)
         self.odometry = o3d.t.pipelines.odometry.rgbd_odometry_multi_scale  # a seam for tests
@@ -96,6 +98,7 @@ class DenseSlam:
             Image, Tensor = self.o3d.t.geometry.Image, self.o3d.core.Tensor
             self.input.set_data_from_image("depth", Image(Tensor(depth)))
             self.input.set_data_from_image("color", Image(Tensor(rgb)))
+            self._depth = depth  # (h, w) uint16 at the tracking resolution, for the weighted refinement
         return why
 
     def _track(self, depth_scale: float, guess: np.ndarray) -> tuple[np.ndarray | None, str, float]:
@@ -112,7 +115,10 @@ class DenseSlam:
                 self.K, o3d.core.Tensor(init), depth_scale, p.depth_max, self.criteria, self.method, self.loss)
         except RuntimeError as exc:  # "Singular 6x6 linear system" and other solver failures
             return None, f"tracking failed: {open3d_message(exc)}", float("nan")
-        T = self.raycast_pose @ r.transformation.cpu().numpy()
+        rel = r.transformation.cpu().numpy()
+        if p.depth_weighting and np.all(np.isfinite(rel)):
+            rel = self._refine(rel, depth_scale)
+        T = self.raycast_pose @ rel
         if not np.all(np.isfinite(T)):
             return None, "tracking gave a non-finite pose", r.fitness
         if r.fitness < p.min_fitness:
@@ -122,6 +128,16 @@ class DenseSlam:
         if dt > p.max_translation_m * k or dr > p.max_rotation_deg * k:
             return None, f"implausible motion {dt:.3f} m, {dr:.1f} deg from the prediction over {k} frame(s)", r.fitness
         return T, "", r.fitness
+
+    def _refine(self, raycast_from_input: np.ndarray, depth_scale: float) -> np.ndarray:
+        """Open3D's estimate refined with each point weighted by its depth noise (:mod:`.weighted_icp`)."""
+        p = self.params
+        src = self._depth.astype(np.float32) / depth_scale
+        src[(src > p.depth_max) | (src < p.depth_min)] = 0.0
+        tgt = self.raycast.get_data_as_image("depth").as_tensor().numpy().reshape(src.shape) / np.float32(depth_scale)
+        T, _ = refine_point_to_plane(src, tgt, self.K_np, raycast_from_input, sigma=p.depth_sigma,
+                                     iterations=p.refine_iterations, max_distance=p.depth_diff, step=p.refine_step)
+        return T
 
     def predicted(self, t: float) -> np.ndarray:
         """Pose expected at time ``t`` from the last two good poses (constant velocity)."""

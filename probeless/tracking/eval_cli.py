@@ -23,8 +23,25 @@ SLAM_FLAGS: dict[str, type] = {
     "voxel_size": float, "depth_max": float, "depth_min": float, "depth_diff": float,
     "trunc_voxel_multiplier": float, "integrate_every": int, "raycast_every": int, "scale": float,
     "min_fitness": float, "iterations": tuple, "raycast_shift": bool, "grid_rotation_deg": list,
-    "integrate_nearest_pixel": bool,
+    "integrate_nearest_pixel": bool, "depth_weighting": bool, "depth_sigma": list, "refine_iterations": int,
+    "refine_step": int,
 }
+FLAG_HELP = {"depth_max": "[m]; default: the source's accurate depth range where it has one (a scene file: its "
+                          "rig's depth_max_m), else SlamParams' 3 m",
+             "depth_weighting": "refine each pose with points weighted by their depth noise (default: on, off for a "
+                                "source with constant noise such as a scene file's rig)",
+             "depth_sigma": "A B Z0: depth noise sigma(z) = A + B (z - Z0)^2 [m] (default: Kinect v1, Nguyen et al. 2012)"}
+
+
+def _gap(text: str) -> int:
+    """A frame gap >= 1 (argparse type)."""
+    try:
+        gap = int(text)
+    except ValueError:
+        gap = 0
+    if gap < 1:
+        raise argparse.ArgumentTypeError(f"a gap is a whole number of frames >= 1, got {text!r}")
+    return gap
 
 
 def add_eval_parser(sub: Any) -> Any:
@@ -43,13 +60,17 @@ def add_eval_parser(sub: Any) -> Any:
     c.add_argument("--stride", type=int, default=1, help="use every n-th frame")
     c.add_argument("--rpe-delta-s", type=float, default=1.0, help="interval of the drift RPE [s] (default 1)")
     c.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    c.add_argument("--depth-consistency", metavar="GAP", type=_gap, nargs="+",
+                   help="also score estimate and ground truth by how well they explain the depth images: median "
+                        "projective depth residual of frame pairs GAP frames apart (needs no ground truth)")
     g = c.add_argument_group("SLAM parameters (default: probeless.tracking.dense.SlamParams)")
     for name, kind in SLAM_FLAGS.items():
         flag, dest = "--" + name.replace("_", "-"), "slam_" + name
         if kind is bool:
-            g.add_argument(flag, dest=dest, default=None, action=argparse.BooleanOptionalAction)
+            g.add_argument(flag, dest=dest, default=None, action=argparse.BooleanOptionalAction,
+                           help=FLAG_HELP.get(name))
         else:
-            g.add_argument(flag, dest=dest, default=None, metavar=name.upper(),
+            g.add_argument(flag, dest=dest, default=None, metavar=name.upper(), help=FLAG_HELP.get(name),
                            **({"nargs": "+", "type": int} if kind is tuple else
                               {"nargs": 3, "type": float} if kind is list else {"type": kind}))
     c.set_defaults(func=cmd_eval_slam)
@@ -63,8 +84,9 @@ def slam_params(ns: argparse.Namespace):
     given = {k: getattr(ns, "slam_" + k) for k in SLAM_FLAGS if getattr(ns, "slam_" + k, None) is not None}
     if "iterations" in given:
         given["iterations"] = tuple(given["iterations"])
-    if "grid_rotation_deg" in given:
-        given["grid_rotation_deg"] = tuple(given["grid_rotation_deg"])
+    for key in ("grid_rotation_deg", "depth_sigma"):
+        if key in given:
+            given[key] = tuple(given[key])
     return SlamParams(**given)
 
 
@@ -100,9 +122,16 @@ def cmd_eval_slam(ns: argparse.Namespace) -> int:
     params = slam_params(ns)
     t0 = time.perf_counter()
     with stdout_to_stderr():
+        # a source that describes its depth (the synthetic rig) sets depth_max and the weighting, unless flags do
         run = run_slam(ns.dataset, params, start=ns.start, max_frames=ns.max_frames, stride=ns.stride,
-                       progress=not ns.no_progress)
-        r = slam_report(run, ns.dataset, params, ns.rpe_delta_s)
+                       progress=not ns.no_progress, source_depth_model=True,
+                       explicit=[k for k in SLAM_FLAGS if getattr(ns, "slam_" + k, None) is not None])
+        r = slam_report(run, ns.dataset, run.params or params, ns.rpe_delta_s)
+        if ns.depth_consistency:
+            from probeless.tracking.depth_consistency import consistency_report
+
+            r["depth_consistency"] = consistency_report(run, ns.dataset, ns.depth_consistency, start=ns.start,
+                                                        max_frames=ns.max_frames, stride=ns.stride)
         r["wall_s"] = time.perf_counter() - t0
         write_outputs(run, r, ns)
     print(json.dumps(r, indent=2) if ns.json else format_report(r))

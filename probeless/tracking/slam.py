@@ -2,7 +2,8 @@
 
 :class:`DenseSlam` (:mod:`.dense`) wraps one ``o3d.t.pipelines.slam.Model`` (a TSDF voxel-block
 grid) on ``CPU:0``: each :meth:`DenseSlam.step` tracks the frame against a raycast of the model
-(point-to-plane ICP, coarse to fine), then integrates it and raycasts the model again at the new
+(point-to-plane ICP, coarse to fine, then refined with points weighted by their depth noise),
+then integrates it and raycasts the model again at the new
 pose. Mapping can run every k-th frame (``integrate_every``, ``raycast_every``) and everything at
 1/n resolution (``scale``) to keep up on a small CPU. Bad frames never raise: they come back as
 state ``lost`` (Open3D's "Singular 6x6 linear system", low fitness, NaN or implausible motion) or
@@ -23,15 +24,16 @@ raycast an empty model).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from collections.abc import Collection
 from typing import Literal
 
 import numpy as np
 
 from probeless.errors import ProbelessError
 from probeless.tracking.dense import DenseSlam, SlamParams, StepResult  # noqa: F401 (re-exported)
-from probeless.tracking.sources import rgbd_samples
+from probeless.tracking.sources import RgbdSample, rgbd_samples
 
 STATES = ("initializing", "ok", "lost", "invalid_input")
 
@@ -49,6 +51,7 @@ class SlamRun:
     gt: list[np.ndarray | None]                     # ground-truth world_from_rgbd or None
     reasons: list[str] = field(default_factory=list)  # why a frame was not tracked ("" when ok)
     wall_s: float = 0.0                             # SLAM time only (no decoding or rendering) [s]
+    params: SlamParams | None = None                # the settings the run used
 
     def mean_costs_ms(self) -> dict[str, float]:
         """Mean duration per stage over the frames that ran it [ms]."""
@@ -57,12 +60,15 @@ class SlamRun:
 
 def run_slam(path: str | Path, params: SlamParams | None = None, *, start: int = 0, max_frames: int = 0,
              stride: int = 1, progress: bool = True,
-             initial_pose: Literal["gt"] | np.ndarray | None = "gt") -> SlamRun:
+             initial_pose: Literal["gt"] | np.ndarray | None = "gt", source_depth_model: bool = False,
+             explicit: Collection[str] = ()) -> SlamRun:
     """Dense SLAM over the frames of ``path`` (dataset folder, scene file or recording).
 
     ``initial_pose``: ``"gt"`` = the first frame's ground truth (so the estimate lives in the
     ground-truth world frame; identity when the source has none), a 4x4 world_from_rgbd, or None
-    (identity). The paper assumes the initial RGB-D pose is known.
+    (identity). The paper assumes the initial RGB-D pose is known. ``source_depth_model``: adapt
+    ``params`` to what the source says of its depth (:func:`source_params`), except the fields named
+    in ``explicit``; ``run.params`` holds the settings used.
     """
     from probeless.progress import progress as bar
 
@@ -73,6 +79,9 @@ def run_slam(path: str | Path, params: SlamParams | None = None, *, start: int =
     with bar(count, f"SLAM {Path(path).name}", enabled=progress) as tick:
         for s in samples:
             if slam is None:
+                if source_depth_model:
+                    params = source_params(params, s, explicit)
+                run.params = params
                 slam = DenseSlam(params, s.K, s.rgb.shape[1], s.rgb.shape[0], _initial(initial_pose, s.gt_world_from_rgbd))
             t0 = time.perf_counter()
             r = slam.step(s.rgb, s.depth, s.depth_scale, s.stamp_ns)
@@ -88,6 +97,19 @@ def run_slam(path: str | Path, params: SlamParams | None = None, *, start: int =
             tick()
     run.stamps_ns, run.frames = np.asarray(stamps, dtype=np.int64), len(stamps)
     return run
+
+
+def source_params(params: SlamParams, sample: RgbdSample, explicit: Collection[str] = ()) -> SlamParams:
+    """``params`` fitted to the depth the source describes (the synthetic rig does; datasets don't):
+    ``depth_max`` = its accurate range, and its noise model for the depth weighting (off where the
+    noise is the same at every depth: nothing to weight). Fields in ``explicit`` stay as given."""
+    change: dict = {}
+    if sample.depth_range_m is not None and "depth_max" not in explicit:
+        change["depth_max"] = float(sample.depth_range_m)
+    if sample.depth_sigma is not None and not {"depth_weighting", "depth_sigma"} & set(explicit):
+        sigma = tuple(float(x) for x in sample.depth_sigma)
+        change.update(depth_weighting=False) if sigma[1] == 0 else change.update(depth_sigma=sigma)
+    return replace(params, **change)
 
 
 def _initial(initial_pose, gt: np.ndarray | None) -> np.ndarray:

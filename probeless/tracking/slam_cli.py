@@ -27,7 +27,7 @@ def add_slam_parser(sub: Any) -> Any:
     c.add_argument("--scale", type=float, help="resolution fraction 1/n: 1, 0.5, 0.25 (default 1)")
     c.add_argument("--integrate-every", type=int, help="integrate every k-th tracked frame (default 1)")
     c.add_argument("--raycast-every", type=int, help="raycast every k-th tracked frame (default 1)")
-    c.add_argument("--depth-max", type=float, help="depth used [m] (default 3)")
+    c.add_argument("--depth-max", type=float, help="depth used [m]; default: a scene file's rig range, else 3")
     c.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     c.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     c.set_defaults(func=cmd_slam_run)
@@ -51,7 +51,8 @@ def cmd_slam_run(ns: argparse.Namespace) -> int:
     params = params_from(ns)
     with stdout_to_stderr():  # Open3D prints on stdout
         run = run_slam(ns.dataset, params, start=ns.start, max_frames=ns.max_frames, stride=ns.stride,
-                       progress=not ns.no_progress, initial_pose="gt" if ns.initial_pose == "gt" else None)
+                       progress=not ns.no_progress, initial_pose="gt" if ns.initial_pose == "gt" else None,
+                       source_depth_model=True, explicit=[k for k in ("depth_max",) if ns.depth_max is not None])
     path = write_tum(ns.output, run.stamps_ns, run.poses)
     states = {s: run.states.count(s) for s in sorted(set(run.states))}
     costs = run.mean_costs_ms()

@@ -89,3 +89,12 @@ def predict_pose(T0: np.ndarray, t0: float, T1: np.ndarray, t1: float, t: float,
     step[:3, :3] = Rotation.from_rotvec(s * w).as_matrix()
     step[:3, 3] = _left_jacobian(s * w) @ (s * v)
     return T1 @ step
+
+
+def se3_exp(xi: np.ndarray) -> np.ndarray:
+    """(4, 4) exp of the twist ``xi`` = (omega, v) (rotation vector [rad], then translation part)."""
+    xi = np.asarray(xi, dtype=np.float64)
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(xi[:3]).as_matrix()
+    T[:3, 3] = _left_jacobian(xi[:3]) @ xi[3:]
+    return T

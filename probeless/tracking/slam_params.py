@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from probeless.errors import ProbelessError
+from probeless.tracking.weighted_icp import KINECT_SIGMA
 
 
 # The TSDF grid is turned against the world (xyz Euler angles) so that no grid axis is parallel to
@@ -42,6 +43,10 @@ class SlamParams:
     raycast_shift: bool = True          # undo the raycast's mean half-voxel bias (slam_math.raycast_pose)
     grid_rotation_deg: tuple[float, float, float] = GRID_ROTATION_DEG  # TSDF grid axes vs world (below) [deg]
     integrate_nearest_pixel: bool = True  # integrate each voxel from its nearest pixel, not Open3D's floor (dense.py)
+    depth_weighting: bool = True        # refine each pose with points weighted by 1/sigma(z)^2 (weighted_icp.py)
+    depth_sigma: tuple[float, float, float] = KINECT_SIGMA  # depth noise sigma(z) = a + b (z - z0)^2 [m]: (a, b, z0)
+    refine_iterations: int = 10         # Gauss-Newton steps of the weighted refinement, at most (0.1 mm steps stop it)
+    refine_step: int = 4                # every n-th pixel (of the tracking resolution) in the refinement
 
     def __post_init__(self) -> None:
         n = round(1.0 / self.scale) if self.scale > 0 else 0
@@ -50,6 +55,11 @@ class SlamParams:
         if self.integrate_every < 1 or self.raycast_every < 1:
             raise ProbelessError("SlamParams.integrate_every and raycast_every: must be >= 1, got "
                                  f"{self.integrate_every} and {self.raycast_every}")
+        if self.depth_weighting and (self.refine_iterations < 1 or self.refine_step < 1 or len(self.depth_sigma) != 3
+                                     or not all(np.isfinite(self.depth_sigma)) or self.depth_sigma[0] <= 0
+                                     or self.depth_sigma[1] < 0):
+            raise ProbelessError("SlamParams: depth weighting needs refine_iterations, refine_step >= 1 and depth_sigma "
+                                 f"(a, b, z0) finite with a > 0, b >= 0; got {self}")
         if not 0 < self.depth_min < self.depth_max or self.voxel_size <= 0 or not self.iterations:
             raise ProbelessError(f"SlamParams: need 0 < depth_min < depth_max, voxel_size > 0 and iterations; got {self}")
 

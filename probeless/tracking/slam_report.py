@@ -66,7 +66,12 @@ def format_report(r: dict) -> str:
         (f"RPE per frame: {mm(rf['trans_rmse'])}, {_deg(rf)} RMSE ({rf['n']} pairs); "
          f"per {rs['delta']['s']:g} s: {mm(rs['trans_rmse'])}, {_deg(rs)} ({rs['n']} pairs)"),
         f"mean cost per frame: {costs}; SLAM total {r['slam_ms_per_frame']:.1f} ms",
+        f"depth_max {r['params']['depth_max']:g} m, voxel {r['params']['voxel_size'] * 1e3:g} mm, scale {r['params']['scale']:g}",
     ]
+    if "depth_consistency" in r:
+        from probeless.tracking.depth_consistency import format_consistency
+
+        lines += format_consistency(r["depth_consistency"])
     lines += [f"{key} written to {r[key]}" for key in ("trajectory", "groundtruth", "plot") if key in r]
     if "trajectory" in r:
         lines.append(f"check with TUM's tools: evaluate_ate.py {r['groundtruth']} {r['trajectory']}")

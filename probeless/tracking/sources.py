@@ -6,7 +6,8 @@ and, where known, the ground-truth ``world_from_rgbd``):
 * a dataset folder (TUM, Redwood/Open3D, 7-Scenes; :func:`probeless.datasets.detect.open_rgbd`),
   ground truth = the dataset's pose of the frame;
 * a scene file (``*.yaml``): the synthetic rig renders its RGB-D frames (no envmaps), ground truth
-  = the rig pose;
+  = the rig pose; it also describes its depth (range ``depth_max_m``, constant noise
+  ``depth_noise_m``), which ``probeless eval slam`` uses unless told otherwise (:func:`.slam.source_params`);
 * a recording (``*.mcap``) holding ``<id>/rgb``, ``<id>/depth``, ``<id>/rgbd/camera_info`` and
   optionally ``<id>/gt/rgbd_pose`` for one node id ``<id>``; colour and depth are paired by
   identical stamps.
@@ -33,6 +34,8 @@ class RgbdSample:
     depth_scale: float                          # depth units per metre
     K: np.ndarray                               # (3, 3) pinhole camera matrix [px]
     gt_world_from_rgbd: np.ndarray | None = None  # (4, 4) ground truth, None where unknown
+    depth_range_m: float | None = None          # where the source knows its sensor is accurate: depth up to this [m]
+    depth_sigma: tuple[float, float, float] | None = None  # its depth noise a + b (z - z0)^2 [m], where known
 
 
 def _window(n: int, start: int, max_frames: int, stride: int) -> range:
@@ -76,7 +79,9 @@ def scene_samples(path: Path, start: int, max_frames: int, stride: int) -> tuple
         try:
             for k in idx:
                 rgb, depth, pose = rig.render_rgbd(events[k])
-                yield RgbdSample(events[k].stamp_ns, rgb, depth, 1000.0, scene.rgbd.K, pose)
+                # the rig's depth noise does not grow with distance: its whole range is as good as near depth
+                yield RgbdSample(events[k].stamp_ns, rgb, depth, 1000.0, scene.rgbd.K, pose, scene.rgbd.depth_max_m,
+                                 (scene.rgbd.depth_noise_m, 0.0, 0.0))
         finally:
             rig.release()
 
