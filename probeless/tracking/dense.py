@@ -5,8 +5,9 @@ Tracking is what ``Model.track_frame_to_model`` does (multi-scale RGB-D odometry
 against the raycast frame) but started from a constant-velocity prediction of the pose instead of
 the raycast pose, so skipped frames (a node that drops what it cannot process) do not lose
 tracking, and (``depth_weighting``) refined with every point weighted by its depth noise
-(:mod:`.weighted_icp`: Open3D weighs near and far structured-light depth alike). Odometry returns ``raycast_from_input``, so ``world_from_input = world_from_raycast @ it``
-where ``world_from_raycast`` is the pose the last raycast was made at.
+(:mod:`.weighted_icp`: Open3D weighs near and far structured-light depth alike). Odometry returns
+``raycast_from_input``, so ``world_from_input = world_from_raycast @ it`` where
+``world_from_raycast`` is the pose the last raycast was made at.
 """
 
 from __future__ import annotations
@@ -74,6 +75,7 @@ class DenseSlam:
         self.loss = o3d.t.pipelines.odometry.OdometryLossParams(params.depth_diff)
         self.odometry = o3d.t.pipelines.odometry.rgbd_odometry_multi_scale  # a seam for tests
         self.method = o3d.t.pipelines.odometry.Method.PointToPlane
+        self._depth: np.ndarray | None = None  # the loaded frame's depth (uint16, tracking resolution)
         self.pose = T0                  # last good world_from_rgbd
         self.raycast_pose = T0          # pose the raycast frame was made at
         self.tracked = 0                # frames tracked (including the first)
@@ -98,7 +100,7 @@ class DenseSlam:
             Image, Tensor = self.o3d.t.geometry.Image, self.o3d.core.Tensor
             self.input.set_data_from_image("depth", Image(Tensor(depth)))
             self.input.set_data_from_image("color", Image(Tensor(rgb)))
-            self._depth = depth  # (h, w) uint16 at the tracking resolution, for the weighted refinement
+            self._depth = depth  # for the weighted refinement
         return why
 
     def _track(self, depth_scale: float, guess: np.ndarray) -> tuple[np.ndarray | None, str, float]:

@@ -24,9 +24,9 @@ raycast an empty model).
 from __future__ import annotations
 
 import time
+from collections.abc import Collection
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from collections.abc import Collection
 from typing import Literal
 
 import numpy as np
@@ -108,7 +108,10 @@ def source_params(params: SlamParams, sample: RgbdSample, explicit: Collection[s
         change["depth_max"] = float(sample.depth_range_m)
     if sample.depth_sigma is not None and not {"depth_weighting", "depth_sigma"} & set(explicit):
         sigma = tuple(float(x) for x in sample.depth_sigma)
-        change.update(depth_weighting=False) if sigma[1] == 0 else change.update(depth_sigma=sigma)
+        if sigma[1] == 0:
+            change["depth_weighting"] = False
+        else:
+            change["depth_sigma"] = sigma
     return replace(params, **change)
 
 
