@@ -2,6 +2,8 @@
 
 Shaders live in ``shaders/`` next to this module, one program per name: ``NAME.vert.glsl`` +
 ``NAME.frag.glsl`` (optionally ``NAME.geom.glsl``), or ``NAME.comp.glsl`` for a compute shader.
+A line ``#include "FILE.glsl"`` is replaced by that file, from the shader's folder or else from
+``probeless/glsl/`` (functions several programs share, e.g. ``fresnel.glsl``).
 
 Matrices are float64 numpy, row-major (``clip = M @ [x, y, z, 1]``); :func:`mat_bytes` packs
 them the way GLSL ``mat3``/``mat4`` uniforms expect (column-major float32).
@@ -10,6 +12,7 @@ them the way GLSL ``mat3``/``mat4`` uniforms expect (column-major float32).
 from __future__ import annotations
 
 import functools
+import re
 from pathlib import Path
 
 import moderngl
@@ -18,6 +21,8 @@ import numpy as np
 from probeless.errors import DeviceError
 
 SHADER_DIR = Path(__file__).with_name("shaders")
+INCLUDE_DIR = Path(__file__).parents[1] / "glsl"
+_INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$')
 GL_TEXTURE_CUBE_MAP_SEAMLESS = 0x884F
 GL_RGBA32F, GL_R32F = 0x8814, 0x822E
 
@@ -55,7 +60,7 @@ def load_program(ctx: moderngl.Context, name: str, defines: dict[str, object] | 
             return None
         head, _, body = path.read_text().partition("\n")
         extra = "".join(f"#define {k} {v}\n" for k, v in (defines or {}).items())
-        return f"{head}\n{extra}#line 2\n{body}"
+        return f"{head}\n{extra}#line 2\n{expand_includes(body, path, shader_dir, first_line=2)}"
 
     stages = {stage: source(stage) for stage in ("vert", "frag", "geom", "comp")}
     try:
@@ -69,6 +74,26 @@ def load_program(ctx: moderngl.Context, name: str, defines: dict[str, object] | 
     except moderngl.Error as exc:
         raise DeviceError(f"shader '{name}' ({shader_dir}) failed to build on "
                           f"{ctx.info['GL_RENDERER']}: {exc}") from exc
+
+
+def expand_includes(body: str, path: Path, shader_dir: Path, first_line: int = 1) -> str:
+    """``body`` (the lines of ``path`` from ``first_line`` on) with each ``#include "FILE"`` line
+    replaced by FILE from ``shader_dir`` or :data:`INCLUDE_DIR`, and a ``#line`` after it so
+    compiler messages keep the including file's line numbers. Included files include nothing."""
+    out = []
+    for n, line in enumerate(body.splitlines(), start=first_line):
+        m = _INCLUDE.match(line)
+        if not m:
+            out.append(line)
+            continue
+        found = next((d / m[1] for d in (shader_dir, INCLUDE_DIR) if (d / m[1]).is_file()), None)
+        if found is None:
+            raise DeviceError(f"{path}:{n}: #include \"{m[1]}\" is neither in {shader_dir} nor in {INCLUDE_DIR}")
+        text = found.read_text()
+        if any(_INCLUDE.match(x) for x in text.splitlines()):
+            raise DeviceError(f"{found}: an included file cannot #include (included from {path}:{n})")
+        out += [text.rstrip("\n"), f"#line {n + 1}"]
+    return "\n".join(out) + "\n"
 
 
 def current_context(method):

@@ -24,12 +24,7 @@ in vec3 v_world;
 in vec3 v_normal;
 layout(location = 0) out vec4 frag_color;
 
-vec2 equirect_uv(vec3 d) {
-    d = normalize(d);
-    float phi = (abs(d.x) + abs(d.y) > 1e-12) ? atan(d.y, d.x) : 0.0;
-    float u = phi / (2.0 * PI);
-    return vec2(u - floor(u), acos(clamp(d.z, -1.0, 1.0)) / PI);
-}
+#include "equirect.glsl"
 
 vec3 env_at(vec3 d, float lod) { return textureLod(env, equirect_uv(d), lod).rgb; }
 
@@ -47,15 +42,7 @@ vec3 glossy(vec3 r) {
     return sum;
 }
 
-// Unpolarised Fresnel reflectance from a medium of index 1 into index eta2 (1 = total reflection).
-float fresnel(float cos_i, float eta2) {
-    float sin_t2 = (1.0 - cos_i * cos_i) / (eta2 * eta2);
-    if (sin_t2 >= 1.0) return 1.0;
-    float cos_t = sqrt(1.0 - sin_t2);
-    float rs = (cos_i - eta2 * cos_t) / (cos_i + eta2 * cos_t);
-    float rp = (eta2 * cos_i - cos_t) / (eta2 * cos_i + cos_t);
-    return 0.5 * (rs * rs + rp * rp);
-}
+#include "fresnel.glsl"
 
 void main() {
     vec3 I = normalize(v_world - camera_position);
