@@ -13,23 +13,25 @@ from probeless.pano.bench_frames import SMALL, best_ms, ms
 SIDE_BY_SIDE, ROUGHNESS = (64, 32), 0.1
 
 
-def bruteforce_time(hdr: np.ndarray, n_texels: int) -> tuple[np.ndarray, np.ndarray, dict]:
+def bruteforce_time(hdr: np.ndarray, n_texels: int, repeats: int = 3) -> tuple[np.ndarray, np.ndarray, dict]:
     """(texel indices, their brute-force values, timing) of :func:`diffuse_map_bruteforce` at 64x32 on
     ``n_texels`` random texels (seed 0). Its per-frame setup (pixel directions and solid angles of the
-    full frame) is timed apart (a call with no texel) and counted once in the all-texel estimate."""
-    from probeless.pano.diffuse import diffuse_map_bruteforce
+    full frame) and its texel loop are timed apart, each the least of ``repeats`` runs after a warm-up,
+    and the setup is counted once in the all-texel estimate."""
+    from probeless.pano.diffuse import bruteforce_inputs, bruteforce_texels
 
     w, h = SIDE_BY_SIDE
     idx = np.sort(np.random.default_rng(0).choice(w * h, n_texels, replace=False))
-    _, t_setup = ms(diffuse_map_bruteforce, hdr, SIDE_BY_SIDE, texels=idx[:0])
-    brute, t_sub = ms(diffuse_map_bruteforce, hdr, SIDE_BY_SIDE, texels=idx)
-    per_texel = max(t_sub - t_setup, 0.0) / n_texels
+    inputs = bruteforce_inputs(hdr)  # warm-up
+    inputs, t_setup = best_ms(lambda: bruteforce_inputs(hdr), repeats)
+    brute, t_sub = best_ms(lambda: bruteforce_texels(inputs, SIDE_BY_SIDE, idx), repeats)
+    per_texel = t_sub / n_texels
     return idx, brute, {"bruteforce_ms": t_setup + per_texel * w * h, "bruteforce_subset_ms": t_sub,
                         "bruteforce_setup_ms": t_setup, "bruteforce_ms_per_texel": per_texel,
                         "bruteforce_texels": int(n_texels), "all_texels": w * h,
                         "bruteforce_extrapolated": n_texels < w * h,
-                        "bruteforce_extrapolation": "setup + (subset time - setup) / subset texels * all texels "
-                                                    "(random texels, seed 0)"}
+                        "bruteforce_extrapolation": "setup + subset texel loop / subset texels * all texels "
+                                                    f"(random texels, seed 0; each the least of {max(1, repeats)} runs)"}
 
 
 def diffuse_side_by_side(hdr: np.ndarray, ctx, n_texels: int, repeats: int) -> dict:
@@ -46,7 +48,7 @@ def diffuse_side_by_side(hdr: np.ndarray, ctx, n_texels: int, repeats: int) -> d
     fast_gpu, t_gpu = best_ms(lambda: gpu.apply(hdr), repeats)
     fast_mm, t_mm = best_ms(lambda: diffuse_map(hdr, SIDE_BY_SIDE), repeats)
     gpu.release()
-    idx, brute, timing = bruteforce_time(hdr, n_texels)
+    idx, brute, timing = bruteforce_time(hdr, n_texels, max(3, repeats))
 
     def err(fast):
         ref = brute.astype(np.float64)

@@ -80,6 +80,30 @@ def diffuse_map(hdr: np.ndarray, out_size: tuple[int, int] = (32, 16),
     return _finish(acc, wts.sum(axis=1, keepdims=True), normalize).reshape(oh, ow, -1).astype(np.float32)
 
 
+def bruteforce_inputs(hdr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The brute force's per-frame setup: (N, 3) pixel directions, (N,) solid angles [sr] and
+    (N, C) float64 radiance of every full-resolution pixel of the equirect ``hdr``."""
+    img = check_equirect(hdr, "diffuse_map_bruteforce").astype(np.float64)
+    h, w, c = img.shape
+    return pixel_directions(w, h).reshape(-1, 3), solid_angles(w, h).reshape(-1), img.reshape(-1, c)
+
+
+def bruteforce_texels(inputs: tuple[np.ndarray, np.ndarray, np.ndarray], out_size: tuple[int, int],
+                      texels: np.ndarray, normalize: str = "weights") -> np.ndarray:
+    """(len(texels), C) float32 brute-force values of the flat output ``texels`` from
+    :func:`bruteforce_inputs`: every input pixel weighted ``solid angle * max(0, n . w)``."""
+    ow, oh = _check(out_size, normalize)
+    dirs, omega, flat = inputs
+    idx = np.asarray(texels).reshape(-1)
+    v, u = np.divmod(idx, ow)
+    normals = pixel_to_direction(u + 0.5, v + 0.5, ow, oh)
+    out = np.empty((len(idx), flat.shape[1]), dtype=np.float64)
+    for k, n in enumerate(normals):
+        wgt = omega * np.maximum(dirs @ n, 0.0)
+        out[k] = _finish(wgt @ flat, wgt.sum(), normalize)
+    return out.astype(np.float32)
+
+
 def diffuse_map_bruteforce(hdr: np.ndarray, out_size: tuple[int, int] = (32, 16),
                            normalize: str = "weights", texels: np.ndarray | None = None) -> np.ndarray:
     """The paper's straightforward construction on the FULL-resolution frame, one texel at a time.
@@ -89,20 +113,9 @@ def diffuse_map_bruteforce(hdr: np.ndarray, out_size: tuple[int, int] = (32, 16)
     work to a subset (for tests and timing); returns (len(texels), C) then, else (H_out, W_out, C).
     """
     ow, oh = _check(out_size, normalize)
-    img = check_equirect(hdr, "diffuse_map_bruteforce").astype(np.float64)
-    h, w, c = img.shape
-    dirs = pixel_directions(w, h).reshape(-1, 3)
-    omega = solid_angles(w, h).reshape(-1)
-    flat = img.reshape(-1, c)
-    idx = np.arange(ow * oh) if texels is None else np.asarray(texels).reshape(-1)
-    v, u = np.divmod(idx, ow)
-    normals = pixel_to_direction(u + 0.5, v + 0.5, ow, oh)
-    out = np.empty((len(idx), c), dtype=np.float64)
-    for k, n in enumerate(normals):
-        wgt = omega * np.maximum(dirs @ n, 0.0)
-        out[k] = _finish(wgt @ flat, wgt.sum(), normalize)
-    out = out.astype(np.float32)
-    return out.reshape(oh, ow, c) if texels is None else out
+    idx = np.arange(ow * oh) if texels is None else texels
+    out = bruteforce_texels(bruteforce_inputs(hdr), (ow, oh), idx, normalize)
+    return out.reshape(oh, ow, -1) if texels is None else out
 
 
 def sh9_coefficients(hdr: np.ndarray) -> np.ndarray:
