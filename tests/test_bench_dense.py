@@ -8,7 +8,7 @@ from probeless.envmap.bench_dense import bench_dense_render
 
 
 def test_bench_dense_small():
-    r = bench_dense_render(size=64, frames=2, repeats=1)
+    r = bench_dense_render(size=64, frames=2, repeats=3)  # best of 3: single runs of a few ms are noisy
     assert r["points"] > 1000 and r["active_blocks"] > 10
     assert r["ours_ms"] > 0 and r["open3d_raycast_ms"] > 0 and 0 < r["ours_coarse_only_ms"] <= r["ours_ms"] * 1.5
     assert r["dense_render_speedup"] == pytest.approx(r["open3d_raycast_ms"] / r["ours_ms"])
