@@ -58,6 +58,17 @@ def play(params: dict, ctx: RecordingContext | None = None) -> RecordingContext:
     return ctx
 
 
+def play_until(params: dict, n_rgb: int) -> RecordingContext:
+    """Step the player's timer until it has sent ``n_rgb`` rgb frames (for looping players), then close it."""
+    node, ctx = make_node(params)
+    try:
+        while len(ctx.outputs("rgb")) < n_rgb:
+            ctx.timers[0][1]()
+    finally:
+        node.close()
+    return ctx
+
+
 # --- 7-Scenes ---------------------------------------------------------------------------------
 
 def test_sevenscenes_frames_intrinsics_and_poses():
@@ -332,13 +343,7 @@ def test_player_recorded_timing_at_30hz():
 
 
 def test_player_loop_keeps_stamps_increasing():
-    node, ctx = make_node({"path": str(SEVEN), "rate": 0, "max_frames": 3, "loop": True})
-    try:
-        step = ctx.timers[0][1]
-        while len(ctx.outputs("rgb")) < 8:
-            step()
-    finally:
-        node.close()
+    ctx = play_until({"path": str(SEVEN), "rate": 0, "max_frames": 3, "loop": True}, 8)
     stamps = [m.header.stamp_ns for m in ctx.outputs("rgb")]
     assert not ctx.stopped and np.all(np.diff(stamps) > 0)
     assert abs(stamps[3] - stamps[2] - 1e9 / 30) < 2  # the next pass follows one frame interval later
@@ -347,16 +352,7 @@ def test_player_loop_keeps_stamps_increasing():
 
 def test_player_preload_plays_the_same_messages_from_memory_across_loops():
     params = {"path": str(SEVEN), "rate": 0, "max_frames": 3, "loop": True}
-    outs = []
-    for preload in (False, True):
-        node, ctx = make_node({**params, "preload": preload})
-        try:
-            step = ctx.timers[0][1]
-            while len(ctx.outputs("rgb")) < 7:
-                step()
-        finally:
-            node.close()
-        outs.append(ctx)
+    outs = [play_until({**params, "preload": preload}, 7) for preload in (False, True)]
     for name in ("rgb", "depth", "gt/rgbd_pose", "rgbd/camera_info"):
         a, b = outs[0].outputs(name)[:7], outs[1].outputs(name)[:7]
         assert [m.header.stamp_ns for m in a] == [m.header.stamp_ns for m in b]
