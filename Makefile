@@ -1,5 +1,5 @@
 # The two commands of the README. Each does all set-up itself, idempotently.
-.PHONY: demo test setup bench clean
+.PHONY: demo test test-fast lint setup bench clean
 
 setup:
 	@bash tools/setup.sh
@@ -21,8 +21,16 @@ demo: setup
 		.venv/bin/probeless launch launch/pano360_ibl.yaml out_dir:=out/demo/pano360; \
 	else echo "pano360: ../shared/data/video360/ not found: the 360° video IBL graph is skipped"; fi
 
-test: setup
+lint: setup
+	.venv/bin/ruff check probeless messages nodes tests tools
+	bash tools/lint_imports.sh
+
+test: lint
 	.venv/bin/python -m pytest -q
+
+# the inner loop: everything not marked slow (see the README for its time)
+test-fast: lint
+	.venv/bin/python -m pytest -q -m "not slow"
 
 bench: setup
 	.venv/bin/probeless bench bus

@@ -9,7 +9,8 @@ Cubemap convention (the world frame *is* the cube frame, z-up): face ``i`` is up
     +X: ( 1, -b, -a)   -X: (-1, -b,  a)   +Y: ( a,  1,  b)
     -Y: ( a, -1, -b)   +Z: ( a, -b,  1)   -Z: (-a, -b, -1)
 
-(see :func:`texel_direction`). Note the world is z-up, so +Z is the ceiling face, -Z the floor.
+(:func:`probeless.geom.cube.texel_direction` and its inverse, solid angles and lookup). Note the
+world is z-up, so +Z is the ceiling face, -Z the floor.
 """
 
 from __future__ import annotations
@@ -21,46 +22,6 @@ import numpy as np
 from probeless.errors import SchemaError
 from probeless.messages.base import Message, Struct, array, message
 from probeless.messages.header import Header
-
-CUBE_FACES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
-
-
-def texel_direction(face: int, row: np.ndarray, col: np.ndarray, size: int) -> np.ndarray:
-    """Unit world direction(s) (..., 3) through the centre of texel (row, col) of a cube face."""
-    a = 2.0 * (np.asarray(col, dtype=np.float64) + 0.5) / size - 1.0
-    b = 2.0 * (np.asarray(row, dtype=np.float64) + 0.5) / size - 1.0
-    one = np.ones_like(a + b)
-    d = [(one, -b, -a), (-one, -b, a), (a, one, b), (a, -one, -b), (a, -b, one), (-a, -b, -one)][face]
-    v = np.stack(np.broadcast_arrays(*d), axis=-1)
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def texel_from_direction(dirs: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Inverse of :func:`texel_direction`: (face, row, col) float texel coordinates of world directions (..., 3).
-
-    ``row``/``col`` are continuous (texel centres at integers); round them for a nearest lookup.
-    """
-    d = np.asarray(dirs, dtype=np.float64)
-    x, y, z = d[..., 0], d[..., 1], d[..., 2]
-    ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
-    face = np.where((ax >= ay) & (ax >= az), np.where(x > 0, 0, 1),
-                    np.where(ay >= az, np.where(y > 0, 2, 3), np.where(z > 0, 4, 5)))
-    major = np.maximum(np.maximum(ax, ay), np.maximum(az, 1e-300))
-    # (a, b) per face from the OpenGL table, divided by the major axis
-    a = np.choose(face, [-z, z, x, x, x, -x]) / major
-    b = np.choose(face, [-y, -y, z, -z, -y, -y]) / major
-    col = (a + 1.0) * 0.5 * size - 0.5
-    row = (b + 1.0) * 0.5 * size - 0.5
-    return face, row, col
-
-
-def sample_cubemap(faces: np.ndarray, dirs: np.ndarray) -> np.ndarray:
-    """Nearest-texel lookup of cubemap ``faces`` (6, S, S, C) along world directions (..., 3) -> (..., C)."""
-    size = faces.shape[1]
-    face, row, col = texel_from_direction(dirs, size)
-    r = np.clip(np.round(row).astype(np.int64), 0, size - 1)
-    c = np.clip(np.round(col).astype(np.int64), 0, size - 1)
-    return faces[face, r, c]
 
 
 @dataclass(frozen=True)

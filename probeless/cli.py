@@ -72,43 +72,6 @@ def cmd_graph(ns: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_bench(ns: argparse.Namespace) -> int:
-    if ns.what == "bus":
-        from probeless.tools.bench_bus import main as bench_bus
-
-        return bench_bus(json_out=ns.json, quick=ns.quick)
-    if ns.what == "bag":
-        from probeless.tools.bench_bag import main as bench_bag
-
-        return bench_bag(json_out=ns.json, quick=ns.quick)
-    if ns.what == "slam":
-        from probeless.tools.bench_slam import main as bench_slam
-
-        return bench_slam(json_out=ns.json, quick=ns.quick)
-    if ns.what == "sensors":
-        from probeless.tools.bench_sensors import main as bench_sensors
-
-        return bench_sensors(json_out=ns.json, quick=ns.quick)
-    if ns.what == "dense":
-        from probeless.tools.bench_dense import main as bench_dense
-
-        return bench_dense(json_out=ns.json, quick=ns.quick)
-    if ns.what == "pipeline":
-        from probeless.tools.bench_pipeline import main as bench_pipeline
-
-        return bench_pipeline(json_out=ns.json, quick=ns.quick)
-    if ns.what == "coarse":
-        from probeless.tools.bench_coarse import main as bench_coarse
-
-        return bench_coarse(json_out=ns.json, quick=ns.quick, atlas_size=ns.atlas_size, frames=ns.frames,
-                            scene=ns.scene, serial_texels=ns.serial_texels)
-    if ns.what == "pano":
-        from probeless.tools.bench_pano import main as bench_pano
-
-        return bench_pano(json_out=ns.json, quick=ns.quick)
-    raise ProbelessError(f"unknown benchmark {ns.what!r}")
-
-
 def _add_bag_parsers(sub) -> None:
     from probeless.bag.cli import add_export_parser, add_info_parser
 
@@ -189,24 +152,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_dataset_parser(sub)
 
-    from probeless.tracking.eval_cli import add_eval_parser
-    from probeless.tracking.eval_fisheye_cli import add_fisheye_eval
+    from probeless.eval import add_eval_parser, add_old_spellings
     from probeless.tracking.slam_cli import add_slam_parser
 
-    from probeless.envmap.eval_cli import add_envmap_eval
-
-    eval_parsers = add_eval_parser(sub)
-    add_fisheye_eval(eval_parsers)
-    add_envmap_eval(eval_parsers)
+    add_eval_parser(sub)
     add_slam_parser(sub)
 
     from probeless.coarse.cli import add_coarse_parser
 
-    add_coarse_parser(sub)
-
-    from probeless.pano.cli import add_pano_parser
-
-    add_pano_parser(sub)
+    # old spellings of evaluations: `coarse eval` (beside `coarse preview`), `pano glossy|diffuse|itmo`
+    add_old_spellings(sub, {"coarse": add_coarse_parser(sub)})
 
     c = sub.add_parser("graph", help="draw a launch graph: nodes, topics, message types")
     c.add_argument("graph")
@@ -215,16 +170,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--format", choices=("png", "svg", "dot", "mermaid"), help="default: from --out suffix")
     c.set_defaults(func=cmd_graph)
 
-    c = sub.add_parser("bench", help="run a benchmark and print its figures")
-    c.add_argument("what", choices=("bus", "bag", "sensors", "slam", "coarse", "pipeline", "dense", "pano"))
-    c.add_argument("--json", action="store_true", help="print one JSON object")
-    c.add_argument("--quick", action="store_true", help="fewer messages (for smoke tests)")
-    c.add_argument("--atlas-size", type=int, default=2048, help="coarse: atlas side [texels] (default 2048)")
-    c.add_argument("--frames", type=int, help="coarse: fisheye frames, the first a warm-up (default 45, --quick 6)")
-    c.add_argument("--scene", help="coarse: scene file (default launch/scenes/partition_room.yaml)")
-    c.add_argument("--serial-texels", type=int, help="coarse: texels the serial brightness loop is timed on "
-                                                     "(default 20000)")
-    c.set_defaults(func=cmd_bench)
+    from probeless.bench.cli import add_bench_parser
+
+    add_bench_parser(sub)
     return p
 
 

@@ -39,7 +39,9 @@ class GraphError(ProbelessError):
 
 
 class ParamError(GraphError):
-    """A node parameter is unknown, of the wrong type or out of range."""
+    """A node parameter is bad: unknown, missing, of the wrong type, out of range, a missing file, or
+    against a node's own rule (``param(check=...)``). Reported by ``probeless check`` and, should a
+    node still find one at run time, raised by the node; never SchemaError/ValueError for a param."""
 
 
 class GraphErrors(ProbelessError):

@@ -16,7 +16,7 @@ from probeless.messages import (BrightnessDelta, CameraInfo, Clock, Cubemap, Cub
                                 Header, Image, InputCounters, Message, NodeStatus, PointCloud, PoseStamped,
                                 SHCoefficients, StageTiming, Tick, TriangleMesh)
 from probeless.messages.diagnostics import TrackingState
-from probeless.messages.geometry import matrix_from_quat
+from probeless.geom.rotation import matrix_from_quat
 
 
 def _rng() -> np.random.Generator:

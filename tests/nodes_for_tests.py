@@ -41,6 +41,23 @@ class Ticker(Node):
             self.ctx.stop()
 
 
+class FailsAtSetup(Node):
+    """Fails in setup: with one of our errors (``error: ours``) or with a bug (``error: bug``)."""
+
+    OUTPUTS = {"image": Image}
+
+    @dataclass(frozen=True)
+    class Params:
+        error: str = param("ours", choices=("ours", "bug"))
+
+    def setup(self):
+        if self.params.error == "ours":
+            from probeless.errors import SceneError
+
+            raise SceneError("nonexistent.yaml: scene file not found")
+        raise KeyError("a bug in setup")
+
+
 class Recorder(Node):
     """Records seq numbers per input (any name, any type); optionally slow; writes JSON on close."""
 

@@ -6,10 +6,9 @@ import json
 import math
 
 import pytest
-
-from probeless.tools.bench_bag import main
-
 from bench_checks import positive
+
+from probeless.bench.bag import main
 
 
 @pytest.mark.timeout(120)

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from probeless.tools.bench_bus import main
+from probeless.bench.bus import main
 
 SIDE_KEYS = ("msgs_per_s", "mb_per_s", "latency_p50_ms", "latency_p99_ms")
 

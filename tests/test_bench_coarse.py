@@ -10,13 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from probeless.tools.bench_coarse import SCENE, main, print_table, strided_subset
+from bench_checks import positive
 
+from probeless.bench.coarse import SCENE, main, print_table, strided_subset
 from probeless.coarse.atlas import fit_atlas
 from probeless.coarse.texels import texel_map
 from probeless.scene.parse import load_scene
-
-from bench_checks import positive
 
 ROOT = Path(__file__).resolve().parents[1]
 STAGES = {"occlusion", "texture_update", "brightness_all", "brightness_sampled", "brightness_serial_subset",
@@ -98,7 +97,7 @@ def test_strided_subset_is_even():
 
 @pytest.mark.timeout(120)
 def test_script_prints_one_json_object():
-    cmd = [sys.executable, str(ROOT / "tools" / "bench_coarse.py"), "--json", "--atlas-size", "128", "--frames", "2",
+    cmd = [sys.executable, "-m", "probeless.bench.coarse", "--json", "--atlas-size", "128", "--frames", "2",
            "--serial-texels", "200"]
     proc = subprocess.run(cmd, check=False, capture_output=True, text=True, cwd=ROOT, timeout=110)
     assert proc.returncode == 0, proc.stderr

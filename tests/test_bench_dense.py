@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from probeless.envmap.bench_dense import bench_dense_render
+from probeless.bench.dense_render import bench_dense_render
 
 
 def test_bench_dense_small():

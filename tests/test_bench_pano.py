@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from probeless.tools import bench_pano
-
 from bench_checks import positive
+
+from probeless.bench import pano as bench_pano
 
 STAGES = {"itmo_gpu_paper", "diffuse_gpu_32x16", "diffuse_matmul_32x16", "upload", "mono_view", "stereo_view",
           "mono_render", "mono_background", "mono_composite", "stereo_render", "stereo_background",

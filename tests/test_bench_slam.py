@@ -6,10 +6,9 @@ import json
 import math
 
 import pytest
-
-from probeless.tools.bench_slam import main
-
 from bench_checks import positive
+
+from probeless.bench.slam import main
 
 
 @pytest.mark.timeout(180)

@@ -12,8 +12,8 @@ import pytest
 from probeless.coarse.atlas import fit_atlas, layout_atlas
 from probeless.coarse.texels import coarse_mesh, texel_map
 from probeless.errors import GeometryError
+from probeless.geom.polygon import contains
 from probeless.scene.parse import load_scene
-from probeless.scene.polygon import contains
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted(glob.glob(str(ROOT / "launch/scenes/*.yaml")))

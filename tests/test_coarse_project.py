@@ -8,7 +8,7 @@ import numpy as np
 from probeless.cameras.base import camera_matrix
 from probeless.cameras.omnidir import OmnidirModel
 from probeless.coarse.project import project_texels, sample_image
-from probeless.tracking.interp import transform_from_rpy
+from probeless.geom.rotation import transform_from_rpy
 
 
 def _pose():

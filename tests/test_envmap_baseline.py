@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
-from probeless.messages.lighting import texel_direction
+from probeless.geom.cube import cube_directions, texel_direction
 from probeless.messages.sensor import Image
 from probeless.nodes.envmap.baseline import BaselineEnvmap as BaselineNode
 from scipy.spatial.transform import Rotation
 
 from probeless.cameras.omnidir import OmnidirModel
-from probeless.envmap.baseline import BaselineEnvmap, cube_directions
+from probeless.envmap.baseline import BaselineMap
 from probeless.envmap.metrics import coverage
 from probeless.errors import ParamError, SchemaError
 from probeless.runtime.testing import run_node
@@ -47,9 +47,9 @@ def test_update_samples_the_image_where_the_model_projects_the_rotated_direction
     rng = np.random.default_rng(0)
     image = cv2.GaussianBlur(rng.integers(0, 256, (W, W, 3), dtype=np.uint8), (5, 5), 1)
     T = pose([30, -20, 50], t=(1.0, 2.0, 3.0))
-    b = BaselineEnvmap(24, MODEL, 183.0)
+    b = BaselineMap(24, MODEL, 183.0)
     written = b.update(image, T)
-    d = cube_directions(24)
+    d = cube_directions(24).reshape(-1, 3)  # [face, row, col] order
     uv, valid = MODEL.project(d @ T[:3, :3])  # rows of R^T d
     cos = (d @ T[:3, :3])[:, 2]
     expect_in = valid & (cos >= np.cos(np.radians(91.5)))
@@ -65,19 +65,19 @@ def test_update_samples_the_image_where_the_model_projects_the_rotated_direction
 
 def test_reproduces_a_distant_environment_in_world_directions_ignoring_translation():
     T = pose([0, 70, 30], t=(3.0, -1.0, 0.5))
-    b = BaselineEnvmap(32, MODEL, 170.0)
+    b = BaselineMap(32, MODEL, 170.0)
     b.update(fisheye_of_environment(T), T)
     d = cube_directions(32).reshape(6, 32, 32, 3)
     err = np.abs(b.faces - env_colour(d))[b.observed]
     assert b.observed.sum() > 2000 and err.max() < 0.02  # quantisation + bilinear on a smooth field
-    moved = BaselineEnvmap(32, MODEL, 170.0)
+    moved = BaselineMap(32, MODEL, 170.0)
     moved.update(fisheye_of_environment(T), pose([0, 70, 30], t=(-5.0, 4.0, 2.0)))
     np.testing.assert_array_equal(moved.faces, b.faces)
 
 
 def test_accumulates_without_clearing_and_keeps_the_last_value():
     up, down = pose([0, 0, 0]), pose([180, 0, 0])  # optical axis +Z (ceiling), then -Z (floor)
-    b = BaselineEnvmap(16, MODEL, 150.0)
+    b = BaselineMap(16, MODEL, 150.0)
     b.update(np.full((W, W, 3), 100, np.uint8), up)
     first = b.observed.copy()
     assert first[4].all() and not first[5].any()
@@ -100,7 +100,7 @@ def BaselineEnvmap_seen(T, size, fov):
 
 
 def test_rejects_wrong_image():
-    b = BaselineEnvmap(8, MODEL, 183.0)
+    b = BaselineMap(8, MODEL, 183.0)
     with pytest.raises(SchemaError, match="uint8"):
         b.update(np.zeros((W, W + 1, 3), np.uint8), np.eye(4))
     assert b.faces_as("uint8").dtype == np.uint8 and b.faces_as("float16", alpha=True).shape == (6, 8, 8, 4)
@@ -130,7 +130,7 @@ def test_node_publishes_the_same_map_for_every_object():
     np.testing.assert_array_equal(m.position, [2.2, 1.9, 0.9])
     np.testing.assert_array_equal(probe[0].faces, m.faces)
     np.testing.assert_array_equal(probe[0].position, [3.8, 1.0, 1.0])
-    ref = BaselineEnvmap(16, MODEL, 170.0)
+    ref = BaselineMap(16, MODEL, 170.0)
     for T in poses[:2]:
         ref.update(fisheye_of_environment(T), T)
     np.testing.assert_array_equal(m.faces[..., :3], ref.faces_as("uint8"))

@@ -7,12 +7,8 @@ import numpy as np
 import pytest
 from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.header import Header
-from probeless.messages.lighting import (
-    BrightnessDelta,
-    Cubemap,
-    SHCoefficients,
-    texel_from_direction,
-)
+from probeless.geom.cube import cube_directions, cube_solid_angles, texel_from_direction
+from probeless.messages.lighting import BrightnessDelta, Cubemap, SHCoefficients
 from probeless.messages.mesh import PointCloud
 from probeless.messages.sensor import Image
 from probeless.nodes.envmap.cubemap import CubemapRenderer
@@ -23,10 +19,10 @@ from probeless.coarse.model import CoarseConfig, make_layout
 from probeless.coarse.texels import texel_map
 from probeless.coarse.truth import true_atlas
 from probeless.envmap.cubemap import EnvmapRenderer, face_buckets, prefilter
-from probeless.envmap.sh import cube_directions, cube_solid_angles, irradiance_from_sh
+from probeless.envmap.sh import irradiance_from_sh
 from probeless.runtime.params import load_params
 from probeless.runtime.testing import RecordingContext, run_node
-from probeless.scene.build import srgb_to_linear
+from probeless.color import srgb_to_linear
 from probeless.scene.parse import load_scene
 from probeless.scene.rig import Rig, expose
 

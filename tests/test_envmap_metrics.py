@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from probeless.messages.lighting import texel_direction
+from probeless.geom.cube import cube_solid_angles, texel_direction
 from scipy import ndimage
 
 from probeless.envmap import metrics as M
@@ -68,7 +68,7 @@ def test_envmap_ssim_averages_faces():
 
 @pytest.mark.parametrize("size", [1, 2, 7, 64])
 def test_texel_solid_angles_sum_to_sphere(size):
-    omega = M.texel_solid_angles(size)
+    omega = cube_solid_angles(size)
     assert omega.shape == (6, size, size)
     assert omega.sum() == pytest.approx(4 * np.pi, rel=1e-12)
 
@@ -78,7 +78,7 @@ def test_texel_solid_angle_matches_differential_formula():
     s = 512
     t = 2 * (np.arange(s) + 0.5) / s - 1
     approx = (2 / s) ** 2 / (1 + t[:, None] ** 2 + t[None, :] ** 2) ** 1.5
-    np.testing.assert_allclose(M.texel_solid_angles(s)[0], approx, rtol=2e-5)
+    np.testing.assert_allclose(cube_solid_angles(s)[0], approx, rtol=2e-5)
 
 
 def test_coverage_of_hemisphere_and_cap():
@@ -87,7 +87,7 @@ def test_coverage_of_hemisphere_and_cap():
     assert M.coverage(d[..., 2] > 0) == pytest.approx(0.5, abs=1e-12)
     assert M.coverage(np.ones((6, s, s), bool)) == pytest.approx(1.0)
     # a cap within 60 deg of +Z covers (1 - cos 60) / 2 = 0.25 of the sphere (texel-centre quantisation)
-    assert M.coverage(d[..., 2] >= 0.5, M.texel_solid_angles(s)) == pytest.approx(0.25, abs=0.01)
+    assert M.coverage(d[..., 2] >= 0.5, cube_solid_angles(s)) == pytest.approx(0.25, abs=0.01)
 
 
 def test_mirror_sphere_reflects_view_direction_at_centre_and_doubles_angles():
@@ -121,7 +121,7 @@ def test_diffuse_sphere_constant_and_directional_light():
     env[0, 30:34, 30:34] = 10.0
     t = 2 * (np.arange(30, 34) + 0.5) / 64 - 1
     cos = 1 / np.sqrt(1 + t[:, None] ** 2 + t[None, :] ** 2)
-    irradiance = 10.0 * (M.texel_solid_angles(64)[0, 30:34, 30:34] * cos).sum()
+    irradiance = 10.0 * (cube_solid_angles(64)[0, 30:34, 30:34] * cos).sum()
     img, _ = M.render_diffuse_sphere(env, 33, max_face=64)
     assert img[16, 16, 0] == pytest.approx(irradiance / np.pi, rel=1e-9)
     # downsampling to 16 keeps the irradiance close (low frequency)

@@ -35,7 +35,7 @@ def test_cubemap_renderer_writes_the_net(tmp_path):
 
 def test_baseline_plus_dense_draws_points_on_top():
     from probeless.envmap.overlay import DenseOverlay
-    from probeless.messages.lighting import texel_from_direction
+    from probeless.geom.cube import texel_from_direction
 
     overlay = DenseOverlay(SQUARE, 2.5)
     # a green patch of points 1 m in +X of the object: it must cover the +X face centre, nothing behind it

@@ -4,13 +4,11 @@ from math import pi, sqrt
 
 import numpy as np
 import pytest
-from probeless.messages.lighting import texel_from_direction
+from probeless.geom.cube import cube_directions, cube_solid_angles, texel_from_direction
 from scipy.special import sph_harm_y
 
 from probeless.envmap.sh import (
     cosine_lobe,
-    cube_directions,
-    cube_solid_angles,
     irradiance_from_sh,
     project_cubemap,
     radiance_from_sh,

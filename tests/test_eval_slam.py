@@ -12,8 +12,8 @@ from scipy.spatial.transform import Rotation
 from test_metrics import horn_quaternion
 
 from probeless.errors import DatasetError
+from probeless.eval import add_eval_parser
 from probeless.scene.parse import load_scene
-from probeless.tracking.eval_cli import add_eval_parser
 from probeless.tracking.tum import read_tum, write_tum
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "rgbd"
@@ -130,8 +130,8 @@ def test_eval_slam_refuses_a_slice_without_ground_truth():
 def test_slam_flags_name_real_slam_params_fields():
     import dataclasses
 
+    from probeless.eval.slam import SLAM_FLAGS, slam_params
     from probeless.tracking.dense import SlamParams
-    from probeless.tracking.eval_cli import SLAM_FLAGS, slam_params
 
     defaults = {f.name: f.default for f in dataclasses.fields(SlamParams)}
     for name, kind in SLAM_FLAGS.items():

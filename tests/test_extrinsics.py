@@ -22,8 +22,8 @@ from probeless.cameras.omnidir import OmnidirModel
 from probeless.cameras.pinhole import PinholeModel
 from probeless.cameras.rig_bag import neighbour_stamp, pair_stamps
 from probeless.errors import CalibrationError
+from probeless.geom.rotation import rotation_from_rpy
 from probeless.messages import CameraInfo, DepthImage, Header, Image
-from probeless.scene.parse import rotation_from_rpy
 
 K_RGBD = np.array([[525.0, 0, 319.5], [0, 525.0, 239.5], [0, 0, 1]])
 W, H = 640, 480

@@ -12,13 +12,13 @@ from scipy.spatial.transform import Rotation
 
 from probeless.bag.writer import BagWriter
 from probeless.errors import BagError, DatasetError
+from probeless.eval import add_evaluation
+from probeless.geom.rotation import transform_from_rpy
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
 from probeless.scene.parse import load_scene
 from probeless.scene.rig import FISHEYE_FRAME, RGBD_FRAME, Rig, frame_schedule
 from probeless.tracking import fisheye_eval as fe
-from probeless.tracking.eval_fisheye_cli import add_fisheye_eval
-from probeless.tracking.interp import transform_from_rpy
 from probeless.wire import encode
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -105,7 +105,8 @@ def write_rig_bag(path: Path, scene_path: Path, rig_id: str = "rig", with_scene:
 
 def run_cli(argv: list[str]) -> int:
     parser = argparse.ArgumentParser()
-    add_fisheye_eval(parser.add_subparsers(dest="command").add_parser("eval").add_subparsers(dest="eval_command"))
+    add_evaluation(parser.add_subparsers(dest="command").add_parser("eval").add_subparsers(dest="eval_command"),
+                   "fisheye-pose")
     ns = parser.parse_args(["eval", "fisheye-pose", *argv])
     return ns.func(ns)
 

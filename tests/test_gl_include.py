@@ -7,7 +7,8 @@ import re
 import pytest
 
 from probeless.errors import DeviceError
-from probeless.scene.gl import INCLUDE_DIR, create_context, expand_includes, load_program
+from probeless.gl.context import create_context
+from probeless.gl.programs import INCLUDE_DIR, expand_includes, load_program
 
 
 def test_an_include_is_replaced_by_the_file_and_line_numbers_resume(tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -27,6 +28,10 @@ CASES = {
     "bad_param_type": (6, "camera", "width", "expected int, got str 'wide'"),
     "bad_param_range": (6, "camera", "height", "below the minimum 1"),
     "bad_param_choice": (8, "fx", "operation", "'sharpen' is not one of"),
+    "bad_param_length": (5, "interp", "translation", "needs 3 value(s), got 2"),
+    "bad_param_nonfinite": (6, "interp", "rpy_deg", "not finite"),
+    "bad_param_missing_file": (6, "player", "path", "no/such/recording.mcap: file not found"),
+    "bad_param_rule": (10, "fx", "ksize", "ksize must be odd, got 4"),
     "bad_cycle": (5, "a", "inputs.image", "cycle of blocking inputs a -> b -> a"),
     "bad_duplicate_id": (5, "camera", "id", "duplicate node id"),
     "bad_policy": (8, "sink", "inputs.image", "unknown policy 'newest'"),
@@ -99,9 +104,57 @@ def test_missing_file_is_a_clear_error(capsys):
     assert "no/such/graph.yaml: cannot read" in capsys.readouterr().err
 
 
-def test_shipped_graphs_validate():
+def test_shipped_graphs_validate(monkeypatch):
+    monkeypatch.chdir(GRAPHS.parent.parent)  # their default files are relative to the repository
     for path in (GRAPHS.parent.parent / "launch").glob("*.yaml"):
         assert validate(parse_graph(path)) == [], path
+
+
+def test_check_names_a_missing_scene_file(monkeypatch, capsys):
+    """A new user's typo: the scene file is reported by `check` (and so by `launch`), before any node starts."""
+    monkeypatch.chdir(GRAPHS.parent.parent)
+    assert main(["check", "launch/probeless.yaml", "scene:=nonexistent.yaml"]) == 2
+    err = capsys.readouterr().err
+    first = err.splitlines()[0]
+    # file:line of the rig's params (the included source file), node id, key, and the file that is missing
+    assert re.match(r"error: \S*launch/sources/synthetic\.yaml:\d+: node 'rig': key 'scene': "
+                    r"nonexistent\.yaml: file not found", first), first
+    assert err.count("error:") == 1 and "Traceback" not in err
+    assert main(["launch", "launch/probeless.yaml", "scene:=nonexistent.yaml"]) == 2  # nothing is started
+    assert capsys.readouterr().err == err
+
+
+def test_check_reports_every_param_rule_with_location(monkeypatch, tmp_path, capsys):
+    """Rules that used to run in nodes' setup(): a check= rule across params, a path, a [2H, H] size."""
+    monkeypatch.chdir(GRAPHS.parent.parent)
+    g = tmp_path / "g.yaml"
+    g.write_text("""nodes:
+  - id: envmap
+    node: baseline_envmap
+    params:
+      object_ids: [a, b]
+      object_positions: [[0, 0, 1]]
+  - id: camera
+    node: fisheye_player
+    params: {path: launch/scenes, calibration: no_calib.yaml}
+  - id: diffuse
+    node: diffuse_map
+    params:
+      out_size: [32, 8]
+  - id: slam
+    node: dense_slam
+    params:
+      initial_pose: [0, 0, 0, 0, 0, 0, 0]
+""")
+    assert main(["check", str(g)]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    expected = [f"error: {g}:6: node 'envmap': key 'object_positions': 2 object_ids but 1 object_positions",
+                f"error: {g}:9: node 'camera': key 'calibration': no_calib.yaml: file not found",
+                f"error: {g}:13: node 'diffuse': key 'out_size': out_size must be [2H, H], got [32, 8]",
+                f"error: {g}:17: node 'slam': key 'initial_pose': needs 7 finite numbers"]
+    for want in expected:
+        assert any(line.startswith(want) for line in lines), (want, lines)
+    assert lines[-1] == "4 error(s)"
 
 
 def test_graph_arguments_are_accepted_anywhere_on_the_line():

@@ -9,17 +9,14 @@ import numpy as np
 import pytest
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
-from probeless.messages.lighting import (
-    Cubemap,
-    SHCoefficients,
-    sample_cubemap,
-    texel_direction,
-)
+from probeless.geom.cube import sample_cubemap, texel_direction
+from probeless.messages.lighting import Cubemap, SHCoefficients
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
 
+from probeless.color import from_srgb8
 from probeless.envmap.sh import irradiance_from_sh, project_cubemap
 from probeless.errors import SceneError
-from probeless.ibl.composite import composite, decode_srgb8, encode_srgb8
+from probeless.ibl.composite import composite, encode_srgb8
 from probeless.ibl.lighting import Lighting
 from probeless.ibl.materials import (
     Diffuse,
@@ -33,7 +30,7 @@ from probeless.ibl.materials import (
 from probeless.ibl.mesh_io import load_mesh, place, uv_sphere
 from probeless.ibl.render import IblObject, IblRenderer
 from probeless.runtime.testing import run_node
-from probeless.scene.gl import create_context
+from probeless.gl.context import create_context
 
 REPO = Path(__file__).resolve().parents[1]
 W = H = 128
@@ -246,7 +243,7 @@ def test_composite_darkens_only_the_shadow_and_draws_the_object(ctx):
     np.testing.assert_array_equal(comp[out.mask], encode_srgb8(out.color[out.mask]))
     dark = ~out.mask & (out.shadow[..., 0] < 0.7)
     assert dark.sum() > 20
-    assert np.all(decode_srgb8(comp[dark]) < decode_srgb8(rgb[dark]))
+    assert np.all(from_srgb8(comp[dark]) < from_srgb8(rgb[dark]))
 
 
 def test_mesh_loading_and_placement(tmp_path):
@@ -274,12 +271,12 @@ def test_mesh_loading_and_placement(tmp_path):
 
 
 def test_node_composites_a_mirror_sphere_lit_by_an_ldr_envmap():
-    from probeless.nodes.envmap.compositor import IblCompositor
+    from probeless.nodes.ibl.compositor import IblCompositor
 
     faces = np.full((6, 16, 16, 3), 128, np.uint8)
     faces[4] = 200  # brighter ceiling
     env = Cubemap(Header(5, "world"), "ball", CENTRE, faces, linear=False)
-    sh = SHCoefficients(Header(5, "world"), "ball", 5, project_cubemap(decode_srgb8(faces), 5))
+    sh = SHCoefficients(Header(5, "world"), "ball", 5, project_cubemap(from_srgb8(faces), 5))
     rgb = np.random.default_rng(1).integers(0, 255, (H, W, 3), dtype=np.uint8)
     info = CameraInfo(Header(0, "rgb"), W, H, "pinhole", K)
     frames = [("rgb", Image(Header(t, "rgb"), rgb, "rgb8")) for t in (10, 20)]
@@ -302,7 +299,7 @@ def test_node_composites_a_mirror_sphere_lit_by_an_ldr_envmap():
 
 
 def test_real_depth_hides_objects_behind_real_surfaces():
-    from probeless.nodes.envmap.compositor import IblCompositor
+    from probeless.nodes.ibl.compositor import IblCompositor
 
     faces = np.full((6, 8, 8, 3), 90, np.uint8)
     env = Cubemap(Header(5, "world"), "ball", CENTRE, faces, linear=False)

@@ -146,8 +146,39 @@ nodes:
     code, log = launch(g)
     assert code == 1
     assert "ZeroDivisionError: crash requested by test" in log      # the traceback, prefixed
+    assert "[src] Traceback (most recent call last):" in log         # an unexpected error keeps it
     assert "[src] " in log and "node src crashed (exit code 1)" in log
     assert json.loads((tmp_path / "sink.json").read_text())["seqs"]["image"] == [0, 1, 2]  # sink closed cleanly
+
+
+def test_our_error_at_setup_is_one_line_and_restart_policy_applies(tmp_path):
+    g = write_graph(tmp_path, """
+nodes:
+  - id: rig
+    node: nodes_for_tests:FailsAtSetup
+    restart: on-failure
+    max_restarts: 1
+    restart_backoff_s: 0.05
+""")
+    code, log = launch(g)
+    assert code == 1, log
+    line = "[rig] ERROR rig: node 'rig': SceneError: nonexistent.yaml: scene file not found"
+    assert log.count(line) == 2, log                                   # the first start and the one restart
+    assert "Traceback" not in log and "  File " not in log, log
+    assert "restarting rig (1/1)" in log and "node rig crashed (exit code 1)" in log
+
+
+def test_unexpected_error_at_setup_keeps_its_traceback(tmp_path):
+    g = write_graph(tmp_path, """
+nodes:
+  - id: rig
+    node: nodes_for_tests:FailsAtSetup
+    params: {error: bug}
+""")
+    code, log = launch(g)
+    assert code == 1, log
+    assert "[rig] Traceback (most recent call last):" in log and "KeyError: 'a bug in setup'" in log, log
+    assert "node rig crashed (exit code 1)" in log
 
 
 def test_restart_on_failure_then_finish(tmp_path):

@@ -11,9 +11,9 @@ from message_examples import EXAMPLES, examples, header
 from probeless.errors import SchemaError
 from probeless.messages import (CameraInfo, CubemapLevel, DepthImage, Image,
                                 PointCloud, TriangleMesh, registry, schema_of)
-from probeless.messages.geometry import (invert_transform, matrix_from_quat, quat_conjugate, quat_from_matrix,
-                                         quat_multiply, quat_normalize, transform_from)
-from probeless.messages.lighting import texel_direction
+from probeless.geom.cube import texel_direction
+from probeless.geom.rotation import (invert_transform, matrix_from_quat, quat_conjugate, quat_from_matrix,
+                                     quat_multiply, quat_normalize, transform_from)
 
 TYPE_NAMES = sorted(registry())
 BAD_DTYPES = ("int64", "complex128", "int8", "float64", "bool")

@@ -7,9 +7,10 @@ import cv2
 import numpy as np
 import pytest
 
+from probeless.eval import add_evaluation
 from probeless.pano import diffuse, equirect
-from probeless.pano.diffuse_eval import add_parser, diffuse_figure, evaluate_diffuse, exact_diffuse, rel_errors
-from probeless.pano.diffuse_report import format_table
+from probeless.pano.diffuse_eval import evaluate_diffuse, exact_diffuse, rel_errors
+from probeless.pano.diffuse_report import diffuse_figure, format_table
 
 
 def sunny_env(w, h):
@@ -59,7 +60,7 @@ def test_evaluate_diffuse_table(pano):
 
 def test_cli_json_and_figure(pano, tmp_path, capsys):
     ap = argparse.ArgumentParser()
-    add_parser(ap.add_subparsers())
+    add_evaluation(ap.add_subparsers(), "diffuse")
     out_png = tmp_path / "row.png"
     ns = ap.parse_args(["diffuse", "--panorama", str(pano), "--sizes", "16x8", "--in-size", "64x32", "--json",
                         "--figure", str(out_png), "--no-progress"])

@@ -9,8 +9,9 @@ import pytest
 from scipy import integrate, ndimage
 
 from probeless.errors import ProbelessError
+from probeless.eval import add_evaluation
 from probeless.pano import equirect, glossy
-from probeless.pano.glossy_eval import add_parser, evaluate_glossy, random_directions
+from probeless.pano.glossy_eval import evaluate_glossy, random_directions
 from probeless.pano.glossy_figure import glossy_spheres
 
 ROUGH = (0.01, 0.05, 0.1, 0.2, 0.5)
@@ -221,7 +222,7 @@ def test_evaluation_cli_and_figure(tmp_path, capsys):
     assert row["mirror"]["mean"] > row["ring_lod_bias_-1"]["mean"]
     assert set(res["summary"]) == {"0.1", "0.5"} and res["summary"]["0.5"]["glossy_speedup"] > 0
     parser = argparse.ArgumentParser()
-    add_parser(parser.add_subparsers())
+    add_evaluation(parser.add_subparsers(), "glossy")
     ns = parser.parse_args(["glossy", "--json", "--panorama", str(path), "--dirs", "4", "--mc-samples", "64",
                             "--no-progress", "--figure", str(tmp_path / "fig.png"), "--figure-size", "24",
                             "--figure-mc-samples", "16"])

@@ -8,8 +8,8 @@ from probeless.errors import ProbelessError
 from probeless.pano import diffuse, equirect, itmo
 from probeless.pano.gpu_diffuse import GpuDiffuse
 from probeless.pano.gpu_itmo import GpuItmo
-from probeless.pano.sources import srgb_to_linear
-from probeless.scene.gl import create_context
+from probeless.color import from_srgb8
+from probeless.gl.context import create_context
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,7 @@ def test_gpu_other_operators_match_numpy(gl):
     ldr = img.astype(np.float32) / 255
     landis = GpuItmo(gl, "landis", max_lum=20.0, threshold=0.6, alpha=1.5, linearize=True).apply(img)
     np.testing.assert_allclose(landis, itmo.landis_itmo(itmo.gamma_decode(ldr), 20.0, 0.6, 1.5), rtol=1e-5, atol=1e-6)
-    np.testing.assert_allclose(GpuItmo(gl, "none").apply(img), srgb_to_linear(img), rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(GpuItmo(gl, "none").apply(img), from_srgb8(img), rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(GpuItmo(gl, "ldr").apply(img), ldr, rtol=1e-6)
     with pytest.raises(ProbelessError, match="no GPU version.*akyuz"):
         GpuItmo(gl, "akyuz")

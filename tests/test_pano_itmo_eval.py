@@ -8,10 +8,10 @@ import cv2
 import numpy as np
 import pytest
 
+from probeless.eval import add_evaluation
 from probeless.pano import equirect, itmo_eval, itmo_maps, itmo_metrics, spheres
-from probeless.pano.itmo_maps import Lighting, SphereSetup
-from probeless.pano.sources import srgb_to_linear
-from probeless.scene.rig import linear_to_srgb
+from probeless.pano.itmo_maps import SphereLighting, SphereSetup
+from probeless.color import from_srgb8, linear_to_srgb
 
 SETUP = SphereSetup(size=33)
 
@@ -26,7 +26,7 @@ def test_make_ldr_round_trips_unsaturated_and_clips_the_rest():
     ok, sat = lin < 0.995, lin >= 1.0
     assert ok.mean() > 0.2 and sat.mean() > 0.2
     # unsaturated: back to linear within the 8-bit quantisation (half a code, plus the LUT's one code)
-    code_err = np.abs(linear_to_srgb(srgb_to_linear(ldr)[ok]) - linear_to_srgb(lin[ok])) * 255
+    code_err = np.abs(linear_to_srgb(from_srgb8(ldr)[ok]) - linear_to_srgb(lin[ok])) * 255
     assert code_err.max() <= 1.0 + 1e-6 and code_err.mean() < 0.3
     assert np.all(ldr[sat] == 255)
 
@@ -50,7 +50,7 @@ def test_camera_exposure_meters_the_weighted_percentile():
 
 def test_constant_environment_gives_constant_spheres():
     env = np.full((64, 128, 3), [2.0, 1.0, 0.5], np.float32)
-    out = itmo_maps.render_spheres(Lighting.of(env), SphereSetup(size=21, albedo=0.7, specular=0.9))
+    out = itmo_maps.render_spheres(SphereLighting.of(env), SphereSetup(size=21, albedo=0.7, specular=0.9))
     np.testing.assert_allclose(out["diffuse"], np.broadcast_to([1.4, 0.7, 0.35], out["diffuse"].shape), rtol=1e-5)
     for obj in ("glossy", "mirror"):
         np.testing.assert_allclose(out[obj], np.broadcast_to([1.8, 0.9, 0.45], out[obj].shape), rtol=1e-5)
@@ -133,7 +133,7 @@ def test_clipped_sun_darkens_ldr_lighting_and_paper_itmo_recovers_part():
     toward, away = (-s[0], -s[1], 0.0), (s[0], s[1], 0.0)  # camera with the sun behind it / in front of it
     contrast = {}
     for m in ("ldr", "paper", "hdr"):
-        lit = Lighting.of(maps[m])
+        lit = SphereLighting.of(maps[m])
         front = itmo_maps.render_spheres(lit, SETUP, views=(toward,))["diffuse"]
         back = itmo_maps.render_spheres(lit, SETUP, views=(away,))["diffuse"]
         contrast[m] = front.mean() / back.mean() - 1.0  # light from the sun's side over the rest
@@ -156,7 +156,7 @@ def test_cli_json_and_figure(tmp_path, capsys):
     path = tmp_path / "sun.hdr"
     assert cv2.imwrite(str(path), hdr[..., ::-1].copy())
     ap = argparse.ArgumentParser()
-    itmo_eval.add_parser(ap.add_subparsers(dest="cmd"))
+    add_evaluation(ap.add_subparsers(dest="cmd"), "itmo")
     fig = tmp_path / "grid.png"
     ns = ap.parse_args(["itmo", "--json", "--no-progress", "--panorama", str(path), "--figure", str(fig)])
     assert ns.func(ns) == 0

@@ -4,12 +4,12 @@ import cv2
 import numpy as np
 import pytest
 
-from probeless.errors import SchemaError
+from probeless.errors import ParamError, SchemaError
 from probeless.messages.header import Header
 from probeless.messages.sensor import Image
 from probeless.nodes.pano.lighting import DiffuseMap, InverseToneMap
 from probeless.pano import diffuse, equirect, itmo
-from probeless.pano.sources import srgb_to_linear
+from probeless.color import from_srgb8
 from probeless.runtime.testing import run_node
 
 HEADER = Header(123_456_789, "pano", 7)
@@ -48,7 +48,7 @@ def test_itmo_operators_match_numpy(operator):
     lin = itmo.gamma_decode(img.astype(np.float32) / 255, 2.2)
     ref = {"landis": lambda: itmo.landis_itmo(lin, max_lum=20.0), "akyuz": lambda: itmo.akyuz_itmo(lin, 20.0),
            "banterle": lambda: itmo.banterle_expand_map(lin, max_lum=20.0),
-           "none": lambda: srgb_to_linear(img), "ldr": lambda: img / np.float32(255)}[operator]()
+           "none": lambda: from_srgb8(img), "ldr": lambda: img / np.float32(255)}[operator]()
     np.testing.assert_allclose(small.data, area(ref, (64, 32)), rtol=1e-4, atol=1e-6)
 
 
@@ -64,7 +64,7 @@ def test_itmo_errors_name_node_and_input():
         run_node(InverseToneMap, [("image", Image(HEADER, np.zeros((64, 120, 3), np.uint8), "rgb8"))])
     with pytest.raises(SchemaError, match="smaller than small_size"):
         run_node(InverseToneMap, [("image", Image(HEADER, np.zeros((32, 64, 3), np.uint8), "rgb8"))])
-    with pytest.raises(SchemaError, match="small_size must be"):
+    with pytest.raises(ParamError, match="small_size must be"):
         run_node(InverseToneMap, [], {"small_size": [100, 64]})
 
 
@@ -119,5 +119,5 @@ def test_diffuse_node_errors():
     with pytest.raises(SchemaError, match="smaller than in_size"):
         run_node(DiffuseMap, [("hdr", Image(HEADER, np.zeros((32, 64, 3), np.float32), "rgbf32"))],
                  {"method": "sh9"})
-    with pytest.raises(SchemaError, match="out_size must be"):
+    with pytest.raises(ParamError, match="out_size must be"):
         run_node(DiffuseMap, [], {"out_size": [32, 8]})

@@ -11,7 +11,8 @@ import pytest
 from probeless.datasets.playback import drain
 from probeless.errors import DatasetError
 from probeless.nodes.pano.sources import PanoramaSource, Video360Source
-from probeless.pano.sources import VideoFrames, equirect_ok, read_panorama, srgb_to_linear
+from probeless.color import from_srgb8
+from probeless.pano.sources import VideoFrames, equirect_ok, read_panorama
 from probeless.runtime.params import load_params
 from probeless.runtime.testing import RecordingContext
 
@@ -64,7 +65,7 @@ def test_read_ldr_png_and_linearise(tmp_path):
     lin = read_panorama(path, linear=True)
     assert lin.dtype == np.float32
     # sRGB EOTF reference points: 0 -> 0, 255 -> 1, 128 -> 0.2158605
-    np.testing.assert_allclose(srgb_to_linear(np.array([0, 128, 255], np.uint8)), [0.0, 0.21586050, 1.0], atol=1e-6)
+    np.testing.assert_allclose(from_srgb8(np.array([0, 128, 255], np.uint8)), [0.0, 0.21586050, 1.0], atol=1e-6)
     c = rgb / 255.0
     np.testing.assert_allclose(lin, np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4), atol=1e-6)
 

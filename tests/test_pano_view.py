@@ -11,7 +11,7 @@ from probeless.errors import ProbelessError
 from probeless.pano.composite import composite_view, encode_display
 from probeless.pano.equirect import direction_to_pixel
 from probeless.pano.itmo import gamma_decode
-from probeless.pano.sources import srgb_to_linear
+from probeless.color import from_srgb8
 from probeless.pano.view import (head_pose, intrinsics, look_rotation, side_by_side, stereo_eye_poses,
                                  view_equirect)
 
@@ -135,7 +135,7 @@ def test_display_encodings_invert_the_decodings_the_itmos_use():
     codes = np.arange(256, dtype=np.uint8)
     np.testing.assert_array_equal(encode_display(codes / 255.0, "direct"), codes)
     np.testing.assert_array_equal(encode_display(gamma_decode(codes / 255.0), "gamma"), codes)
-    np.testing.assert_array_equal(encode_display(srgb_to_linear(codes), "srgb"), codes)
+    np.testing.assert_array_equal(encode_display(from_srgb8(codes), "srgb"), codes)
     np.testing.assert_array_equal(encode_display(np.array([-1.0, 7.0]), "direct"), [0, 255])
     with pytest.raises(ProbelessError):
         encode_display(codes, "log")

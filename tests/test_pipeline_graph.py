@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from probeless.tools import bench_pipeline
+from probeless.bench import pipeline as bench_pipeline
 
 
 def test_full_pipeline_runs_and_reports_every_stage():

@@ -7,12 +7,13 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from probeless.errors import ParamError, ProbelessError
+from probeless.geom.rotation import slerp, transform_from_rpy
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
 from probeless.messages.sensor import Image
 from probeless.nodes.tracking.pose_interp import PoseInterp
 from probeless.runtime.testing import run_node
-from probeless.tracking.interp import PoseBuffer, interpolate_pose, slerp, transform_from_rpy
+from probeless.tracking.interp import PoseBuffer, interpolate_pose
 
 MS = 1_000_000
 AXIS = np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -55,6 +55,57 @@ def test_param_errors_name_node_key_and_line(values, key, text):
     assert text in errors[0].message
     with pytest.raises(ParamError):
         load_params(P, values, node_id="cam")
+
+
+@dataclass(frozen=True)
+class Q:
+    size: tuple[int, ...] = param((4, 2), length=2, min=1)
+    pose: tuple[float, ...] = param((), length=(0, 7), finite=True)
+    spec: tuple[Any, ...] = param((), finite=True)
+    codec: str = param("mp4v", length=4)
+    names: tuple[str, ...] = param((), min_length=1, max_length=2, check=lambda v: "no spaces" if any(
+        " " in n for n in v) else None)
+    counts: tuple[int, ...] = param((), check=lambda v, p: None if len(v) == len(p.names) else "one per name")
+    scene: str = param("", path="file", must_exist=True)
+    folder: str = param(".", path="dir", must_exist=True)
+
+
+@pytest.mark.parametrize("values, key, text", [
+    ({"size": [4, 2, 1]}, "size", "needs 2 value(s), got 3: [4, 2, 1]"),
+    ({"size": [4, 0]}, "size", "item [1]: 0 is below the minimum 1"),
+    ({"pose": [0, 0, 0]}, "pose", "needs 0 or 7 value(s), got 3"),
+    ({"pose": [0, 0, float("inf"), 0, 0, 0, 1]}, "pose", "item [2]: inf is not finite (expected list of float)"),
+    ({"spec": [{"position": [1, float("nan"), 0]}]}, "spec", "item [0]['position'][1]: nan is not finite"),
+    ({"codec": "mp4"}, "codec", "needs 4 character(s), got 3"),
+    ({"names": []}, "names", "needs at least 1 value(s), got 0"),
+    ({"names": ["a b"]}, "names", "no spaces"),
+    ({"names": ["a", "b"], "counts": [1]}, "counts", "one per name"),
+    ({"scene": "no/such.yaml"}, "scene", "no/such.yaml: file not found (relative to the working folder"),
+    ({"scene": "."}, "scene", ".: is a folder, not a file"),
+    ({"folder": "no_such_dir"}, "folder", "no_such_dir: folder not found"),
+])
+def test_param_declared_rules(values, key, text):
+    errors = check_params(Q, values, node_id="n", file="g.yaml", lines={key: 3})
+    assert [e.key for e in errors] == [key], errors
+    assert errors[0].format().startswith(f"g.yaml:3: node 'n': key '{key}': ") and text in errors[0].message, errors
+    with pytest.raises(ParamError):
+        load_params(Q, values, node_id="n")
+
+
+def test_param_paths_are_relative_to_the_working_folder(tmp_path, monkeypatch):
+    (tmp_path / "scene.yaml").write_text("x")
+    assert check_params(Q, {"scene": str(tmp_path / "scene.yaml")}, node_id="n") == []
+    monkeypatch.chdir(tmp_path)
+    assert check_params(Q, {"scene": "scene.yaml", "folder": "."}, node_id="n") == []
+    assert check_params(Q, {"scene": ""}, node_id="n") == []  # the empty default: not given
+    assert load_params(Q, {"names": ["a"], "counts": [2]}, node_id="n").counts == (2,)
+
+
+def test_param_declaration_errors():
+    with pytest.raises(TypeError, match="must_exist"):
+        param("", must_exist=True)
+    with pytest.raises(TypeError, match="path="):
+        param("", path="folder")
 
 
 def test_required_param():

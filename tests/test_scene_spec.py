@@ -13,10 +13,11 @@ from matplotlib.path import Path as MplPath
 from scipy.spatial.transform import Rotation
 
 from probeless.errors import SceneError
-from probeless.scene import polygon
+from probeless.geom import polygon
+from probeless.geom.rotation import rotation_from_rpy
 from probeless.scene.build import build_geometry
 from probeless.scene.obj import read_obj
-from probeless.scene.parse import load_scene, rotation_from_rpy
+from probeless.scene.parse import load_scene
 from probeless.scene.rig import frame_schedule
 from probeless.scene.tessellate import triangulate
 from probeless.scene.trajectory import camera_pose

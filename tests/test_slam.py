@@ -21,7 +21,7 @@ from probeless.messages.header import Header
 from probeless.nodes.tracking.slam import DenseSlamNode
 from probeless.runtime.testing import run_node
 from probeless.tracking.dense import DenseSlam, SlamParams
-from probeless.tracking.slam import run_slam, source_params
+from probeless.tracking.offline import run_slam, source_params
 from probeless.tracking.slam_cli import add_slam_parser
 from probeless.tracking.slam_input import prepare_frame
 from probeless.tracking.slam_math import predict_pose
@@ -378,9 +378,9 @@ def test_integration_takes_the_nearest_pixel_and_the_model_stays_in_world_coordi
 
 
 def test_node_depth_noise_params_are_checked_by_name():
-    from probeless.errors import SchemaError
+    from probeless.errors import ParamError
 
-    with pytest.raises(SchemaError, match="node 'node'.*'depth_sigma'"):
+    with pytest.raises(ParamError, match="node 'node'.*'depth_sigma'"):
         run_node(DenseSlamNode, [], {"depth_sigma": [0.0, 0.002, 0.4]})
     with pytest.raises(ProbelessError, match="depth_sigma"):
         SlamParams(depth_sigma=(0.001, -1.0, 0.0))

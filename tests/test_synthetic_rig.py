@@ -14,11 +14,12 @@ import yaml
 
 from probeless.bag.reader import BagReader
 from probeless.cli import main as cli
-from probeless.messages.lighting import sample_cubemap
+from probeless.geom.cube import sample_cubemap
 from probeless.runtime.testing import RecordingContext
 from probeless.runtime.params import load_params
 from probeless.scene.parse import load_scene
-from probeless.scene.rig import FISHEYE_FRAME, RGBD_FRAME, FrameEvent, Rig, expose, frame_schedule, linear_to_srgb
+from probeless.color import linear_to_srgb
+from probeless.scene.rig import FISHEYE_FRAME, RGBD_FRAME, FrameEvent, Rig, expose, frame_schedule
 from probeless.wire import decode
 
 from test_scene_spec import BASE

@@ -10,14 +10,14 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from probeless.coarse.visibility import (
-    check_floorplan,
     is_convex,
     visibility_polygon,
     visible_from,
 )
 from probeless.errors import GeometryError, ProbelessError
+from probeless.geom.floorplan import check_floorplan
 from probeless.scene.parse import load_scene
-from probeless.scene.polygon import (
+from probeless.geom.polygon import (
     contains,
     distance_to_boundary,
     self_intersection,

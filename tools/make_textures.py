@@ -1,6 +1,6 @@
 """Regenerate the procedural textures shipped in launch/scenes/textures/ (our own work, CC0).
 
-Run: python -m probeless.tools.make_textures [OUT_DIR]
+Run: python tools/make_textures.py [OUT_DIR]
 """
 
 from __future__ import annotations

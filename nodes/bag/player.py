@@ -10,72 +10,30 @@ recorded time to every node of the graph; its ``epoch`` grows at each loop.
 
 from __future__ import annotations
 
-import queue
 import sys
-import threading
 import time
 from dataclasses import dataclass
-from typing import Callable, Iterator
 
 from probeless.bag.reader import BagMessage, BagReader
 from probeless.bag.schema import check_schemas
+from probeless.errors import ParamError
+from probeless.launch.replay import parse_remaps
 from probeless.messages.header import Clock, Header
 from probeless.runtime import Node, param
+from probeless.runtime.pacing import Pacer, ReadAhead
 
 CLOCK_PERIOD_NS = 10_000_000
 READ_AHEAD = 64  # messages decoded ahead of playback
-PRECISE_SLEEP_S = 0.003
-GIL_SWITCH_S = 0.0002  # GIL hand-over interval in the player process [s]  # a message due this soon is waited for with time.sleep, not the 1 ms timer
-_END = object()
+GIL_SWITCH_S = 0.0002  # GIL hand-over interval in the player process [s]
 
 
-class ReadAhead(threading.Thread):
-    """Reads messages on its own thread into a bounded queue, so chunk decompression (which
-    releases the GIL) never sits between two publishes on the player's thread."""
-
-    def __init__(self, messages: Callable[[], Iterator[BagMessage]], size: int = READ_AHEAD):
-        super().__init__(name="bag-read-ahead", daemon=True)
-        self.messages = messages
-        self.queue: queue.Queue = queue.Queue(maxsize=size)
-        self.stopping = False
-        self.error: BaseException | None = None
-
-    def run(self) -> None:
-        try:
-            for msg in self.messages():
-                while not self.stopping:
-                    try:
-                        self.queue.put(msg, timeout=0.1)
-                        break
-                    except queue.Full:
-                        continue
-                if self.stopping:
-                    return
-        except BaseException as exc:  # surfaced on the player's thread
-            self.error = exc
-        self.queue.put(_END)
-
-    def next(self) -> BagMessage | None:
-        item = self.queue.get()
-        if item is _END:
-            if self.error is not None:
-                raise self.error
-            return None
-        return item
-
-    def stop(self) -> None:
-        self.stopping = True
-
-
-def parse_remaps(remaps: tuple[str, ...]) -> dict[str, str]:
-    """``("a:=b", ...)`` -> ``{"a": "b"}``; ValueError on a malformed item."""
-    out = {}
-    for item in remaps:
-        src, sep, dst = item.partition(":=")
-        if not sep or not src or not dst:
-            raise ValueError(f"remap {item!r} is not of the form from:=to")
-        out[src] = dst
-    return out
+def _remap_problem(remap: tuple[str, ...]) -> str | None:
+    """The remap param's rule (a param check): every item is from:=to."""
+    try:
+        parse_remaps(remap)
+    except ValueError as exc:
+        return str(exc)
+    return None
 
 
 class BagPlayer(Node):
@@ -85,14 +43,14 @@ class BagPlayer(Node):
 
     @dataclass(frozen=True)
     class Params:
-        path: str = param(doc="recording to play (.mcap)")
+        path: str = param(path="file", must_exist=True, doc="recording to play (.mcap)")
         rate: float = param(1.0, min=0.0, max=1000.0, doc="speed factor; 0 = as fast as possible without loss")
         loop: bool = param(False, doc="start again at the end")
         lockstep: bool = param(False, doc="publish each message only after the graph has processed the last")
         start_s: float = param(0.0, min=0.0, doc="skip this much of the recording [s]")
         duration_s: float = param(0.0, min=0.0, doc="play only this much [s]; 0 = to the end")
         topics: tuple[str, ...] = param((), doc="recorded topics to play; empty = all")
-        remap: tuple[str, ...] = param((), doc="topic renames, from:=to")
+        remap: tuple[str, ...] = param((), check=_remap_problem, doc="topic renames, from:=to")
         max_lag_s: float = param(0.05, min=0.0, doc="lag beyond which the schedule shifts [s]")
 
     def setup(self) -> None:
@@ -108,7 +66,8 @@ class BagPlayer(Node):
         check_schemas(p.path, {t: (i.type_name, i.version) for t, i in recorded.items() if not p.topics or t in p.topics})
         missing = [t for t in p.topics if t not in recorded]
         if missing:
-            raise ValueError(f"{p.path}: no topic(s) {missing} in the recording (has: {sorted(recorded)})")
+            raise ParamError(f"{p.path}: no topic(s) {missing} in the recording (has: {sorted(recorded)})",
+                             node_id=self.ctx.node_id, key="topics")
         self.topics = list(p.topics) or sorted(recorded)
         self.lockstep = p.lockstep or p.rate == 0
         self.epoch = 0
@@ -123,15 +82,15 @@ class BagPlayer(Node):
         end = start + int(p.duration_s * 1e9) if p.duration_s else None
         if getattr(self, "ahead", None) is not None:
             self.ahead.stop()
-        self.ahead = ReadAhead(lambda: self.reader.messages(topics=self.topics, start_ns=start, end_ns=end))
+        self.ahead = ReadAhead(lambda: self.reader.messages(topics=self.topics, start_ns=start, end_ns=end),
+                               size=READ_AHEAD, name="bag-read-ahead")
         self.ahead.start()
         self.pending: BagMessage | None = None
-        self.t0: float | None = None
+        self.pacer = Pacer(p.rate) if p.rate > 0 else None
         self.first_log_ns = start
 
     def _step(self) -> None:
-        """Publish every message that is due; sleep precisely for one due within PRECISE_SLEEP_S."""
-        rate = self.params.rate
+        """Publish every message that is due (the pacer sleeps precisely for one due very soon)."""
         while True:
             if self.pending is None:
                 self.pending = self.ahead.next()
@@ -139,18 +98,13 @@ class BagPlayer(Node):
                     self._at_end()
                     return
             msg = self.pending
-            now = time.monotonic()
-            if self.t0 is None:
-                self.t0 = now - (msg.log_time_ns - self.first_log_ns) / 1e9 / (rate or 1)
-            if rate > 0:
-                due = self.t0 + (msg.log_time_ns - self.first_log_ns) / 1e9 / rate
-                if due - now > PRECISE_SLEEP_S:
-                    self._tick_clock(now, rate)
+            if self.pacer is not None:
+                lag = self.pacer.wait((msg.log_time_ns - self.first_log_ns) / 1e9)
+                if lag is None:
+                    self._tick_clock(time.monotonic(), self.params.rate)
                     return
-                if due > now:
-                    time.sleep(due - now)
-                elif now - due > self.params.max_lag_s:
-                    self.t0 += now - due  # fell behind: slow every topic down together
+                if lag > self.params.max_lag_s:
+                    self.pacer.shift(lag)  # fell behind: slow every topic down together
             self._publish(msg)
             self.pending = None
             if self.lockstep:
@@ -165,7 +119,7 @@ class BagPlayer(Node):
             self.ctx.wait_quiescent()
 
     def _tick_clock(self, now: float, rate: float) -> None:
-        sim = self.first_log_ns + int((now - self.t0) * rate * 1e9)
+        sim = self.first_log_ns + int((now - self.pacer.t0) * rate * 1e9)
         if self.last_clock_ns is None or sim - self.last_clock_ns >= CLOCK_PERIOD_NS:
             self._clock(sim)
 

@@ -9,27 +9,13 @@ file as an INCOMPLETE report (metadata ``probeless.incomplete``).
 from __future__ import annotations
 
 import json
-import subprocess
 from dataclasses import dataclass
-from pathlib import Path
 
 from probeless import __version__
 from probeless.bag.writer import BagWriter
+from probeless.provenance import git_revision
 from probeless.runtime import Node, param
 from probeless.runtime.receiver import RawMessage
-
-
-def git_revision() -> str:
-    """The repository's HEAD revision (with '+dirty'), or 'unknown' outside a git checkout."""
-    root = Path(__file__).resolve().parents[2]
-    try:
-        rev = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
-                             timeout=5).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=5).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return (rev + ("+dirty" if dirty else "")) if rev else "unknown"
 
 
 class SeqTracker:

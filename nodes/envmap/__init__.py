@@ -1,1 +1,1 @@
-"""Environment-map nodes: cubemap renderer, baseline, IBL compositor."""
+"""Environment-map nodes: the cubemap renderer and the paper's baseline (one swaps for the other)."""

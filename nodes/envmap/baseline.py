@@ -21,9 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from probeless.cameras import model_from_info
-from probeless.envmap.baseline import BaselineEnvmap as BaselineMap
+from probeless.envmap.baseline import BaselineMap
+from probeless.envmap.objects import (move_object, object_ids_problem, object_positions_problem,
+                                       parse_objects, write_nets)
 from probeless.envmap.sh import project_cubemap
-from probeless.errors import ParamError
 from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.header import Header
 from probeless.messages.lighting import BrightnessDelta, Cubemap, SHCoefficients
@@ -31,34 +32,7 @@ from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ExactTimeSync
-from probeless.scene.build import srgb_to_linear
-
-
-def parse_objects(ids: tuple, positions: tuple, node_id: str) -> dict[str, np.ndarray]:
-    """{id: position (3,) float64} of the ``object_ids`` / ``object_positions`` params (as the cubemap renderer's)."""
-    if len(ids) != len(positions):
-        raise ParamError(f"{len(ids)} object_ids but {len(positions)} object_positions: need one [x, y, z] per id",
-                         node_id=node_id, key="object_positions")
-    out: dict[str, np.ndarray] = {}
-    for i, (oid, pos) in enumerate(zip(ids, positions)):
-        if not oid or "/" in oid or oid in out:
-            raise ParamError(f"object_ids[{i}]: must be unique, non-empty and without '/', got {oid!r}",
-                             node_id=node_id, key="object_ids")
-        xyz = np.asarray(pos, np.float64)
-        if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
-            raise ParamError(f"object_positions[{i}]: need 3 finite numbers [m, world], got {list(pos)!r}",
-                             node_id=node_id, key="object_positions")
-        out[oid] = xyz
-    return out
-
-
-def move_object(objects: dict[str, np.ndarray], msg: PoseStamped, counts: Counter) -> None:
-    """Move (or add) the object ``msg.child_frame_id`` to the pose's position; a non-finite pose is counted."""
-    T = msg.target_from_source
-    if np.isfinite(T).all():
-        objects[msg.child_frame_id] = T[:3, 3].astype(np.float64)
-    else:
-        counts["bad_object_pose"] += 1
+from probeless.color import srgb_to_linear
 
 
 def _encode(faces: np.ndarray, dtype: str) -> np.ndarray:
@@ -78,9 +52,11 @@ class BaselineEnvmap(Node):
 
     @dataclass(frozen=True)
     class Params:
-        object_ids: tuple[str, ...] = param((), doc="virtual objects to publish an environment map for")
-        object_positions: tuple[tuple[float, ...], ...] = param((), doc="[x, y, z] per object id [m, world]; only "
-                                                                         "labels the message")
+        object_ids: tuple[str, ...] = param((), check=object_ids_problem,
+                                            doc="virtual objects to publish an environment map for")
+        object_positions: tuple[tuple[float, ...], ...] = param((), check=object_positions_problem,
+                                                                doc="[x, y, z] per object id [m, world]; only "
+                                                                    "labels the message")
         face_size: int = param(256, min=1, max=4096, doc="cubemap face size [texels]")
         fov_deg: float = param(183.0, min=1.0, max=359.0, doc="directions beyond fov/2 off the fisheye axis are "
                                                                "not written [deg]")
@@ -158,8 +134,6 @@ class BaselineEnvmap(Node):
 
     def close(self) -> None:
         if getattr(self, "map", None) is not None and self.params.net_dir:
-            from probeless.nodes.envmap.cubemap import write_nets
-
             write_nets({oid: self.last_faces.get(oid, self.map.faces) for oid in self.objects}, self.params.net_dir)
         if getattr(self, "overlay", None) is not None:
             self.overlay.release()

@@ -34,15 +34,15 @@ from probeless.messages.lighting import (
 )
 from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
-from probeless.nodes.envmap.baseline import move_object, parse_objects
 
 from probeless.coarse.model import CoarseConfig, make_layout
 from probeless.envmap.cubemap import EnvmapRenderer, prefilter
+from probeless.envmap.objects import (move_object, object_ids_problem, object_positions_problem,
+                                       parse_objects, write_nets)
 from probeless.envmap.sh import project_cubemap
 from probeless.errors import ProbelessError
 from probeless.runtime import Node, param
-from probeless.scene.build import srgb_to_linear
-from probeless.scene.rig import linear_to_srgb
+from probeless.color import linear_to_srgb, srgb_to_linear
 
 
 def to_ldr(colors: np.ndarray) -> np.ndarray:
@@ -51,16 +51,10 @@ def to_ldr(colors: np.ndarray) -> np.ndarray:
     return c.astype(np.float32) / 255.0 if c.dtype == np.uint8 else linear_to_srgb(c).astype(np.float32)
 
 
-def write_nets(faces_by_id: dict[str, np.ndarray], out_dir: str) -> None:
-    """``cubemap_net_<id>.png`` (horizontal cross, z up) of each object's LDR faces."""
-    from pathlib import Path
-
-    from probeless.scene.preview import cube_net, write_png
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    for oid, faces in faces_by_id.items():
-        write_png(out / f"cubemap_net_{oid}.png", (np.clip(cube_net(faces), 0, 1) * 255 + 0.5).astype(np.uint8))
+def _mip_problem(face_size: int, p) -> str | None:
+    """face_size's rule against mip_levels (a param check): every mip level has a whole number of texels."""
+    step = 1 << (p.mip_levels - 1)
+    return f"face_size {face_size} is not divisible by 2^(mip_levels-1) = {step}" if face_size % step else None
 
 
 class CubemapRenderer(Node):
@@ -78,15 +72,19 @@ class CubemapRenderer(Node):
         atlas_size: int = param(0, min=0, max=16384, doc="atlas side when texels_per_m is 0 [texels] (as the "
                                                          "texturer's); 0 = the width of the atlas images received")
         texels_per_m: float = param(0.0, min=0.0, max=10000.0, doc="texel density; 0 = fit atlas_size [texels/m] (as the texturer's)")
-        object_ids: tuple[str, ...] = param((), doc="virtual objects to render an environment map for")
-        object_positions: tuple[tuple[float, ...], ...] = param((), doc="[x, y, z] per object id [m, world]")
-        face_size: int = param(256, min=4, max=4096, doc="cube face side [texels]")
+        object_ids: tuple[str, ...] = param((), check=object_ids_problem,
+                                            doc="virtual objects to render an environment map for")
+        object_positions: tuple[tuple[float, ...], ...] = param((), check=object_positions_problem,
+                                                                doc="[x, y, z] per object id [m, world]")
+        face_size: int = param(256, min=4, max=4096, check=_mip_problem,
+                               doc="cube face side [texels]; divisible by 2^(mip_levels-1)")
         dense: bool = param(True, doc="render the dense model on top of the coarse one (false: the 'no dense' ablation)")
         splat_m: float = param(0.02, min=0.0, max=1.0, doc="world diameter of a point splat, about the point spacing [m]")
         max_splat_px: float = param(64.0, min=1.0, max=255.0, doc="largest splat [px]")
         draw_objects: bool = param(False, doc="draw the other virtual objects as flat spheres into each map")
         object_radius: float = param(0.1, min=0.0, max=10.0, doc="sphere radius of other objects [m]")
-        object_color: tuple[float, ...] = param((0.8, 0.8, 0.8), doc="sphere colour of other objects [camera LDR 0..1]")
+        object_color: tuple[float, ...] = param((0.8, 0.8, 0.8), length=3,
+                                                doc="sphere colour of other objects [camera LDR 0..1]")
         mip_levels: int = param(6, min=1, max=12, doc="levels incl. the base; face_size must divide by 2^(levels-1)")
         sh_bands: int = param(5, min=1, max=8, doc="SH bands of the sh/* output (5 = 25 coefficients, the paper's)")
         dtype: str = param("uint8", choices=("uint8", "float16"), doc="face sample type")
@@ -96,9 +94,6 @@ class CubemapRenderer(Node):
 
     def setup(self) -> None:
         p = self.params
-        if p.face_size % (1 << (p.mip_levels - 1)):
-            raise ProbelessError(f"cubemap_renderer: face_size {p.face_size} is not divisible by 2^(mip_levels-1) "
-                                 f"= {1 << (p.mip_levels - 1)}")
         self.objects = parse_objects(p.object_ids, p.object_positions, self.ctx.node_id)
         self.renderer: EnvmapRenderer | None = None
         self.floorplan: Floorplan | None = None

@@ -42,7 +42,7 @@ class VideoWriter(Node):
     class Params:
         path: str = param(doc="output .mp4 file (parent folders are created)")
         fps: float = param(15.0, min=0.1, max=1000.0, doc="frame rate written into the file [Hz]")
-        codec: str = param("mp4v", doc="FourCC of the codec")
+        codec: str = param("mp4v", length=4, doc="FourCC of the codec (4 characters)")
 
     def setup(self) -> None:
         self.writer: cv2.VideoWriter | None = None

@@ -18,50 +18,19 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from probeless.messages.sensor import Image
 
 from probeless.errors import SchemaError
-from probeless.ibl.objects import object_from_dict
+from probeless.ibl.objects import object_from_dict, objects_problem
 from probeless.pano.composite import DISPLAY, DISPLAY_FOR_OPERATOR, render_view
+from probeless.pano.objects import DEFAULT_OBJECTS, MONO_SIZE, resolve_mesh
 from probeless.pano.render import PanoRenderer
 from probeless.pano.view import HMD_EYE_SIZE, head_pose, view_equirect
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ExactTimeSync
-
-REPO = Path(__file__).resolve().parents[2]
-TEAPOT = "launch/scenes/meshes/teapot.obj"
-MONO_SIZE = (1280, 720)  # the paper's single camera view (width, height) [px]
-
-# Five objects, each a different material combination (paper 002, §6), in an arc 2.5 m in front
-# of the start view (+x), below eye height.
-DEFAULT_OBJECTS = (
-    {"id": "mirror_teapot", "mesh": TEAPOT, "position": [2.5, 1.15, -0.45], "radius": 0.32, "yaw_deg": -60,
-     "material": {"type": "mirror"}},
-    {"id": "gold_sphere", "mesh": "sphere", "position": [2.7, 0.55, -0.1], "radius": 0.22,
-     "material": {"type": "metal", "colour": [1.0, 0.78, 0.34], "roughness": 0.1}},
-    {"id": "white_teapot", "mesh": TEAPOT, "position": [2.4, 0.0, -0.5], "radius": 0.32, "yaw_deg": -90,
-     "material": {"type": "diffuse", "albedo": [0.8, 0.8, 0.8]}},
-    {"id": "plastic_sphere", "mesh": "sphere", "position": [2.7, -0.55, -0.1], "radius": 0.22,
-     "material": {"type": "mix", "layers": [{"weight": 0.75, "type": "diffuse", "albedo": [0.8, 0.12, 0.1]},
-                                            {"weight": 0.25, "type": "metal", "colour": [1, 1, 1],
-                                             "roughness": 0.2}]}},
-    {"id": "glass_sphere", "mesh": "sphere", "position": [2.5, -1.15, -0.45], "radius": 0.3,
-     "material": {"type": "glass", "ior": 1.5}},
-)
-
-
-def resolve_mesh(spec: dict) -> dict:
-    """``spec`` with a relative mesh path that is missing here replaced by the repository's file."""
-    mesh = spec.get("mesh")
-    if isinstance(mesh, str) and mesh != "sphere" and not Path(mesh).is_absolute() and not Path(mesh).exists():
-        if (REPO / mesh).exists():
-            return {**spec, "mesh": str(REPO / mesh)}
-    return dict(spec)
-
 
 class PanoCompositor(Node):
     """``image`` + ``hdr`` + ``diffuse`` (same stamp) -> composited ``image`` (see the module docstring)."""
@@ -71,9 +40,11 @@ class PanoCompositor(Node):
 
     @dataclass(frozen=True)
     class Params:
-        objects: tuple[Any, ...] = param(DEFAULT_OBJECTS, doc="virtual objects: list of {id, mesh, position, "
-                                                              "radius|scale, yaw_deg, up, material} (see "
-                                                              "probeless.ibl.objects); world z up, viewer at 0")
+        objects: tuple[Any, ...] = param(DEFAULT_OBJECTS, check=lambda v: objects_problem(v, resolve_mesh),
+                                         doc="virtual objects: list of {id, mesh, position, radius|scale, "
+                                             "yaw_deg, up, material} (see probeless.ibl.objects; unique ids, a "
+                                             "relative mesh path missing here is taken from the repository); "
+                                             "world z up, viewer at 0")
         mode: str = param("mono", choices=("mono", "stereo"), doc="one view, or two eyes side by side")
         width: int = param(0, min=0, max=8192, doc="view (per eye) width; 0 = 1280 mono, 1182 stereo [px]")
         height: int = param(0, min=0, max=8192, doc="view (per eye) height; 0 = 720 mono, 1464 stereo [px]")

@@ -19,18 +19,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from probeless.errors import SchemaError
 from probeless.messages.sensor import Image
-from probeless.pano import itmo
 from probeless.pano.diffuse import diffuse_map, sh9_irradiance_map
+from probeless.pano.expand import area_resize, expand_cpu
 from probeless.pano.gpu_itmo import GPU_OPERATORS
-from probeless.pano.sources import srgb_to_linear
 from probeless.runtime import Node, param
 
 OPERATORS = ("paper", "landis", "akyuz", "banterle", "none", "ldr")
+
+
+def equirect_size(key: str):
+    """A param check: ``key`` is [W, H] with W == 2 H (an equirectangular size)."""
+    def check(size: tuple[int, ...]) -> str | None:
+        return None if size[0] == 2 * size[1] else f"{key} must be [2H, H], got {list(size)}"
+    return check
 
 
 def check_image(node: str, name: str, msg: Image, encodings: tuple[str, ...]) -> np.ndarray:
@@ -40,27 +45,6 @@ def check_image(node: str, name: str, msg: Image, encodings: tuple[str, ...]) ->
     if msg.width != 2 * msg.height:
         raise SchemaError(f"{node}: input {name!r} is {msg.width}x{msg.height}, not an equirectangular 2:1 image")
     return msg.data
-
-
-def expand_cpu(rgb8: np.ndarray, operator: str, *, linearize: bool = True, decode_gamma: float = 2.2,
-               **params) -> np.ndarray:
-    """(H, W, 3) float32 HDR of ``rgb8`` by ``operator`` (numpy); ``params`` go to the operator."""
-    if operator == "none":
-        return srgb_to_linear(rgb8)
-    ldr = rgb8.astype(np.float32) / np.float32(255.0)
-    if operator == "ldr":
-        return ldr
-    if operator != "paper" and linearize:
-        ldr = itmo.gamma_decode(ldr, decode_gamma)
-    return itmo.apply_itmo(operator, ldr, **params)
-
-
-def area_resize(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """float32 area average of ``img`` to ``size`` (W, H) (cv2.INTER_AREA); as is if it already has it."""
-    img = np.asarray(img, np.float32)
-    if img.shape[1::-1] == tuple(size):
-        return img
-    return cv2.resize(img, tuple(int(s) for s in size), interpolation=cv2.INTER_AREA)
 
 
 class InverseToneMap(Node):
@@ -82,13 +66,12 @@ class InverseToneMap(Node):
         banterle_l_white: float = param(10.0, min=1e-3, max=1e4, doc="banterle: inverse Reinhard white point")
         banterle_threshold: float = param(0.9, min=0.0, max=1.0, doc="banterle: luminance of expand-map seeds")
         banterle_sigma_frac: float = param(0.02, min=1e-4, max=1.0, doc="banterle: expand-map blur / width")
-        small_size: tuple[int, ...] = param((128, 64), doc="size (W, H) of hdr_small [px]; W == 2 H")
+        small_size: tuple[int, ...] = param((128, 64), length=2, min=1, check=equirect_size("small_size"),
+                                            doc="size (W, H) of hdr_small [px]; W == 2 H")
         full: bool = param(True, doc="publish the full-resolution hdr (false: hdr_small only)")
 
     def setup(self) -> None:
         p = self.params
-        if len(p.small_size) != 2 or p.small_size[1] < 1 or p.small_size[0] != 2 * p.small_size[1]:
-            raise SchemaError(f"itmo: small_size must be [2H, H], got {list(p.small_size)}")
         self.op_params = {"landis": dict(max_lum=p.max_lum, threshold=p.landis_threshold, alpha=p.landis_alpha),
                           "akyuz": dict(max_lum=p.max_lum, gamma=p.akyuz_gamma),
                           "banterle": dict(max_lum=p.max_lum, l_white=p.banterle_l_white,
@@ -141,18 +124,16 @@ class DiffuseMap(Node):
     class Params:
         method: str = param("gpu", choices=("gpu", "matmul", "sh9"), doc="Algorithm 1 on the GPU, numpy weight "
                                                                          "matrix, or 9 SH coefficients")
-        out_size: tuple[int, ...] = param((32, 16), doc="diffuse map size (W, H) [px]; W == 2 H")
-        in_size: tuple[int, ...] = param((128, 64), doc="size (W, H) the input is area-averaged to [px]")
+        out_size: tuple[int, ...] = param((32, 16), length=2, min=1, check=equirect_size("out_size"),
+                                          doc="diffuse map size (W, H) [px]; W == 2 H")
+        in_size: tuple[int, ...] = param((128, 64), length=2, min=1, check=equirect_size("in_size"),
+                                         doc="size (W, H) the input is area-averaged to [px]; W == 2 H")
         weights: str = param("subtexel", choices=("subtexel", "paper", "moments"), doc="gpu: texel weights "
                              "integrated over sub-texels (as matmul), the paper's cos(latitude) * cos(angle), or "
                              "radiance moments of the full frame (near exact; needs hdr >= 4 x in_size)")
 
     def setup(self) -> None:
         p = self.params
-        for key in ("out_size", "in_size"):
-            size = getattr(p, key)
-            if len(size) != 2 or size[1] < 1 or size[0] != 2 * size[1]:
-                raise SchemaError(f"diffuse_map: {key} must be [2H, H], got {list(size)}")
         self.out_size, self.in_size = tuple(p.out_size), tuple(p.in_size)
         self.gpu = None
         if p.method == "gpu":

@@ -13,14 +13,14 @@ HDR files (and LDR ones with ``linear``) as ``hdr`` (rgbf32, linear), LDR files 
 
 from __future__ import annotations
 
-import time
+import os
 from dataclasses import dataclass
 
 from probeless.messages.header import Header
 from probeless.messages.sensor import Image
-from probeless.nodes.bag.player import PRECISE_SLEEP_S
-from probeless.pano.sources import VideoFrames, equirect_ok, read_panorama
+from probeless.pano.sources import HDR_SUFFIXES, LDR_SUFFIXES, VideoFrames, equirect_ok, read_panorama
 from probeless.runtime import Node, param
+from probeless.runtime.pacing import Pacer
 
 
 class Video360Source(Node):
@@ -30,7 +30,8 @@ class Video360Source(Node):
 
     @dataclass(frozen=True)
     class Params:
-        path: str = param(doc="equirectangular video file (anything OpenCV/FFmpeg decodes)")
+        path: str = param(path="file", must_exist=True,
+                          doc="equirectangular video file (anything OpenCV/FFmpeg decodes)")
         loop: bool = param(False, doc="start again at the end")
         rate: float = param(1.0, min=0.0, max=1000.0, doc="speed factor of the video timing; 0 = lockstep")
         max_frames: int = param(0, min=0, doc="stop after this many frames; 0 = at the end of the video")
@@ -49,7 +50,7 @@ class Video360Source(Node):
         self.video.start()
         self.published = self.late = self.dropped = 0
         self.pending = None
-        self.t0: float | None = None
+        self.pacer = Pacer(p.rate) if p.rate > 0 else None
         self.loop_offset_s = 0.0  # video time of the start of the current pass
         self.last_t_s = -1.0
         self.timer = self.ctx.create_timer(0.001, self.step, name="play")
@@ -70,22 +71,17 @@ class Video360Source(Node):
                 self.last_t_s = t_s
                 self.pending = (self.loop_offset_s + t_s, rgb)
             vt, rgb = self.pending
-            if p.rate > 0:
-                now = time.monotonic()
-                if self.t0 is None:
-                    self.t0 = now - vt / p.rate
-                due = self.t0 + vt / p.rate
-                if due - now > PRECISE_SLEEP_S:
+            if self.pacer is not None:
+                lag = self.pacer.wait(vt)
+                if lag is None:
                     return
-                if due > now:
-                    time.sleep(due - now)
-                elif now - due > p.max_lag_s:
+                if lag > p.max_lag_s:
                     if p.drop_late:
                         self.dropped += 1
                         self.pending = None
                         continue
                     self.late += 1
-                    self.t0 += now - due  # fell behind: slow down instead of bursting
+                    self.pacer.shift(lag)  # fell behind: slow down instead of bursting
             else:
                 self.ctx.wait_quiescent()
             stamp = self.ctx.now_ns() if p.stamps == "wall" else round(vt * 1e9)
@@ -109,6 +105,14 @@ class Video360Source(Node):
             self.video.close()
 
 
+def _panorama_type_problem(path: str) -> str | None:
+    """The panorama path's rule (a param check): a file type read_panorama reads."""
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in HDR_SUFFIXES + LDR_SUFFIXES:
+        return f"{path}: unknown panorama type {suffix!r}, expected one of {HDR_SUFFIXES + LDR_SUFFIXES}"
+    return None
+
+
 class PanoramaSource(Node):
     """Publishes one still panorama repeatedly (see the module docstring)."""
 
@@ -116,7 +120,8 @@ class PanoramaSource(Node):
 
     @dataclass(frozen=True)
     class Params:
-        path: str = param(doc="panorama: Radiance .hdr, .exr (if OpenCV has it), .png or .jpg")
+        path: str = param(path="file", must_exist=True, check=_panorama_type_problem,
+                          doc="panorama: Radiance .hdr, .exr (if OpenCV has it), .png or .jpg")
         rate_hz: float = param(1.0, min=1e-3, max=1000.0, doc="publishing rate [Hz]")
         count: int = param(0, min=0, doc="publish this many times, then stop; 0 = until stopped")
         linear: bool = param(False, doc="LDR files: linearise sRGB and publish rgbf32 on hdr")

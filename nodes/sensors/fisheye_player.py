@@ -54,9 +54,11 @@ class FisheyePlayer(Node):
 
     @dataclass(frozen=True)
     class Params:
-        path: str = param(doc="image folder or video file")
-        calibration: str = param(doc="calibration file: our YAML or OCamCalib calib_results.txt")
-        stamps: str = param("", doc="file with one stamp [s] per frame; empty = frame / fps")
+        path: str = param(path="any", must_exist=True, doc="image folder or video file")
+        calibration: str = param(path="file", must_exist=True,
+                                 doc="calibration file: our YAML or OCamCalib calib_results.txt")
+        stamps: str = param("", path="file", must_exist=True,
+                            doc="file with one stamp [s] per frame; empty = frame / fps")
         fps: float = param(0.0, min=0.0, doc="frame rate without stamps [Hz]; 0 = the video's, or 30 for a folder")
         time_offset_s: float = param(0.0, doc="added to every stamp [s]")
         rate: float = param(1.0, min=0.0, max=1000.0, doc="speed factor of the recorded timing; 0 = lockstep")

@@ -42,7 +42,8 @@ class OpenCvCamera(Node):
         exposure: float | None = param(None, doc="manual exposure in the backend's units; None = auto")
         fourcc: str = param("", doc="pixel format, e.g. MJPG; empty = device default")
         frame_id: str = param("camera", doc="frame_id of the images")
-        calibration: str = param("", doc="calibration file (our YAML or OCamCalib); empty = no camera_info")
+        calibration: str = param("", path="file", must_exist=True,
+                                 doc="calibration file (our YAML or OCamCalib); empty = no camera_info")
         time_offset_s: float = param(0.0, doc="added to every stamp [s], e.g. minus a known latency")
         realtime: bool = param(True, doc="files: deliver frames at their recorded pace")
         buffer: int = param(2, min=1, max=1000, doc="live: newest frames kept while the node is busy")

@@ -15,10 +15,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from probeless.datasets.detect import open_rgbd, select
+from pathlib import Path
+
+from probeless.datasets.detect import detect_format, open_rgbd, select
 from probeless.datasets.playback import STAMPS, Playback
 from probeless.datasets.stream import loop_period_ns, rgbd_groups
 from probeless.datasets.textfiles import IntrinsicsOverride
+from probeless.errors import DatasetError
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import shift_stamp
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
@@ -31,6 +34,33 @@ def preloaded(groups: list, offset_ns: int):
         yield stamp + offset_ns, [(name, shift_stamp(m, offset_ns) if offset_ns else m) for name, m in msgs]
 
 
+INTRINSICS = ("fx", "fy", "cx", "cy")
+
+
+def _trajectory_problem(trajectory: str, p) -> str | None:
+    """The trajectory param's rule (a param check): a Redwood dataset's .log, relative to the dataset folder."""
+    if not trajectory:
+        return None
+    try:
+        fmt = detect_format(p.path) if p.format == "auto" else p.format
+    except DatasetError:
+        return None  # the folder itself is reported (missing) or fails at start (unknown layout)
+    path = Path(trajectory) if Path(trajectory).is_absolute() else Path(p.path) / trajectory
+    if fmt == "redwood" and not path.is_file():
+        return f"{path}: trajectory log is missing"
+    return None
+
+
+def _intrinsics_problem(key: str):
+    """A param check of fx/fy/cx/cy: all four or none (reported once, on the first one given)."""
+    def check(value, p) -> str | None:
+        given = [k for k in INTRINSICS if getattr(p, k) is not None]
+        if given and len(given) < 4 and given[0] == key:
+            return f"intrinsics override needs all of fx, fy, cx, cy; missing {[k for k in INTRINSICS if k not in given]}"
+        return None
+    return check
+
+
 class RgbdDatasetPlayer(Node):
     """Publishes the frames of an RGB-D dataset folder with their timing (see the module docstring)."""
 
@@ -38,7 +68,7 @@ class RgbdDatasetPlayer(Node):
 
     @dataclass(frozen=True)
     class Params:
-        path: str = param(doc="dataset folder")
+        path: str = param(path="dir", must_exist=True, doc="dataset folder")
         format: str = param("auto", choices=("auto", "tum", "redwood", "7scenes"), doc="folder layout")
         rate: float = param(1.0, min=0.0, max=1000.0, doc="speed factor of the recorded timing; 0 = lockstep")
         loop: bool = param(False, doc="start again at the end")
@@ -50,11 +80,12 @@ class RgbdDatasetPlayer(Node):
         stamps: str = param("dataset", choices=STAMPS,
                             doc="dataset = the recorded stamps; wall = the node clock at publishing (like live)")
         depth_scale: float = param(0.0, min=0.0, doc="depth units per metre; 0 = the format's")
-        trajectory: str = param("", doc="Redwood: .log file of poses; empty = auto (groundtruth*.log preferred)")
-        fx: float | None = param(None, doc="focal length override [px] (with fy, cx, cy)")
-        fy: float | None = param(None, doc="focal length override [px]")
-        cx: float | None = param(None, doc="principal point override [px]")
-        cy: float | None = param(None, doc="principal point override [px]")
+        trajectory: str = param("", check=_trajectory_problem, doc="Redwood: .log file of poses (relative to the "
+                                "dataset folder); empty = auto (groundtruth*.log preferred)")
+        fx: float | None = param(None, check=_intrinsics_problem("fx"), doc="focal length override [px] (with fy, cx, cy)")
+        fy: float | None = param(None, check=_intrinsics_problem("fy"), doc="focal length override [px]")
+        cx: float | None = param(None, check=_intrinsics_problem("cx"), doc="principal point override [px]")
+        cy: float | None = param(None, check=_intrinsics_problem("cy"), doc="principal point override [px]")
         preload: bool = param(False, doc="decode every frame before the graph starts and play from memory")
 
     def setup(self) -> None:

@@ -11,10 +11,10 @@ from probeless.messages.lighting import Cubemap
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
 
 from probeless.runtime import Node, param
+from probeless.runtime.pacing import Pacer
 from probeless.scene.parse import load_scene
 from probeless.scene.rig import Rig, frame_schedule
 
-PRECISE_SLEEP_S = 0.003
 
 
 class SyntheticRig(Node):
@@ -34,7 +34,9 @@ class SyntheticRig(Node):
 
     @dataclass(frozen=True)
     class Params:
-        scene: str = param(doc="scene file (.yaml); use $(dirname) for paths relative to the graph")
+        scene: str = param(path="file", must_exist=True,
+                           doc="scene file (.yaml), relative to the working folder; use $(dirname) for paths "
+                               "relative to the graph")
         rate: float = param(1.0, min=0.0, max=100.0, doc="speed factor against scene time; 0 = lockstep, as fast as the graph consumes")
         duration_s: float = param(0.0, min=0.0, doc="render this much scene time [s]; 0 = the whole trajectory")
         loop: bool = param(False, doc="start again at the end")
@@ -54,7 +56,8 @@ class SyntheticRig(Node):
         self.events = frame_schedule(self.scene, p.duration_s or None)
         self.period_s = (p.duration_s or self.scene.duration) + 1.0 / self.scene.rgbd.fps
         self.lockstep = p.rate == 0
-        self.passes, self.next, self.t0 = 0, 0, None
+        self.passes, self.next = 0, 0
+        self.pacer = None if self.lockstep else Pacer(p.rate)
         self.floorplan_sent = False
         self.timer = self.ctx.create_timer(0.002, self._step, name="render")
 
@@ -68,15 +71,8 @@ class SyntheticRig(Node):
             return
         event = self.events[self.next]
         offset_s = self.passes * self.period_s
-        if not self.lockstep:
-            now = time.monotonic()
-            if self.t0 is None:
-                self.t0 = now - (offset_s + event.t) / self.params.rate
-            due = self.t0 + (offset_s + event.t) / self.params.rate
-            if due - now > PRECISE_SLEEP_S:
-                return
-            if due > now:
-                time.sleep(due - now)
+        if not self.lockstep and self.pacer.wait(offset_s + event.t) is None:
+            return
         capture_ns = self.ctx.now_ns()
         with self.ctx.timed("render"):
             messages = list(self.rig.messages(event))
@@ -89,8 +85,8 @@ class SyntheticRig(Node):
         self.next += 1
         if self.lockstep:
             self.ctx.wait_quiescent()
-        elif time.monotonic() - due > self.params.max_lag_s:
-            self.t0 += time.monotonic() - due  # fell behind: both cameras slow down together
+        elif (lag := time.monotonic() - self.pacer.due(offset_s + event.t)) > self.params.max_lag_s:
+            self.pacer.shift(lag)  # fell behind: both cameras slow down together
 
     def _at_end(self) -> None:
         if not self.params.loop:

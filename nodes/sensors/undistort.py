@@ -35,6 +35,15 @@ def target_model(params) -> OmnidirModel | LongLat:
     return OmnidirModel.from_fov(params.width, params.height, params.fov_deg, params.xi)
 
 
+def _target_problem(fov_deg: float, params) -> str | None:
+    """fov_deg's rule against xi (a param check): the omnidir target model exists for them."""
+    try:
+        target_model(params)
+    except CalibrationError as exc:
+        return str(exc)
+    return None
+
+
 def same_calibration(a: CameraInfo, b: CameraInfo) -> bool:
     """Equal intrinsics (the header is ignored: a re-stamped CameraInfo needs no new LUT)."""
     return messages_equal(replace(a, header=Header(0)), replace(b, header=Header(0)))
@@ -52,14 +61,15 @@ class FisheyeUndistort(Node):
                             doc="omnidir = the runtime unified-sphere model; longlat = equirectangular")
         width: int = param(1024, min=1, max=8192, doc="output width [px]")
         height: int = param(1024, min=1, max=8192, doc="output height [px]")
-        fov_deg: float = param(185.0, min=1.0, max=359.0, doc="omnidir target: field of view fitting the image [deg]")
+        fov_deg: float = param(185.0, min=1.0, max=359.0, check=_target_problem,
+                               doc="omnidir target: field of view fitting the image [deg] (within xi's domain)")
         xi: float = param(1.0, min=0.0, max=10.0, doc="omnidir target: Mei sphere offset xi [-]")
         lon_span_deg: float = param(360.0, min=1.0, max=360.0, doc="longlat target: longitude span [deg]")
         lat_span_deg: float = param(180.0, min=1.0, max=180.0, doc="longlat target: latitude span [deg]")
         interpolation: str = param("linear", choices=tuple(INTERPOLATIONS), doc="cv2.remap interpolation")
 
     def setup(self) -> None:
-        self.target = target_model(self.params)
+        self.target = target_model(self.params)  # fov_deg / xi checked at load
         self.info: CameraInfo | None = None
         self.source: CameraModel | None = None
         self.lut: tuple[np.ndarray, np.ndarray] | None = None

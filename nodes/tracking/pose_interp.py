@@ -24,19 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probeless.errors import ParamError
-from probeless.messages.geometry import PoseStamped, invert_transform
+from probeless.geom.rotation import invert_transform, transform_from_rpy
+from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
 from probeless.messages.sensor import Image
 from probeless.runtime import Node, param
-from probeless.tracking.interp import PoseBuffer, transform_from_rpy
+from probeless.tracking.interp import PoseBuffer
 
 
-def fisheye_from_rgbd(translation, rpy_deg, node_id: str = "") -> np.ndarray:
+def fisheye_from_rgbd(translation, rpy_deg) -> np.ndarray:
     """4x4 fisheye_from_rgbd from the scene-file convention: p_fisheye = R p_rgbd + t, R from roll/pitch/yaw."""
-    for key, value in (("translation", translation), ("rpy_deg", rpy_deg)):
-        if len(value) != 3:
-            raise ParamError(f"needs 3 numbers, got {len(value)}", node_id=node_id, key=key)
     return transform_from_rpy(translation, rpy_deg)
 
 
@@ -52,9 +49,11 @@ class PoseInterp(Node):
 
     @dataclass(frozen=True)
     class Params:
-        translation: tuple[float, ...] = param(doc="fisheye_from_rgbd translation t (p_fisheye = R p_rgbd + t) [m]; "
+        translation: tuple[float, ...] = param(length=3, finite=True,
+                                               doc="fisheye_from_rgbd translation t (p_fisheye = R p_rgbd + t) [m]; "
                                                    "the fisheye_from_rgbd input (target_from_source) overrides it")
-        rpy_deg: tuple[float, ...] = param(doc="fisheye_from_rgbd rotation R = Rz(yaw) Ry(pitch) Rx(roll) [deg]")
+        rpy_deg: tuple[float, ...] = param(length=3, finite=True,
+                                           doc="fisheye_from_rgbd rotation R = Rz(yaw) Ry(pitch) Rx(roll) [deg]")
         max_extrapolation_s: float = param(0.05, min=0.0, max=10.0, doc="how far beyond the newest (or oldest) "
                                                                         "pose a pose may be extrapolated [s]")
         wait_for_bracket: bool = param(False, doc="hold frames newer than the last pose until the next pose "
@@ -69,7 +68,7 @@ class PoseInterp(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.rgbd_from_fisheye = invert_transform(fisheye_from_rgbd(p.translation, p.rpy_deg, self.ctx.node_id))
+        self.rgbd_from_fisheye = invert_transform(fisheye_from_rgbd(p.translation, p.rpy_deg))
         self.poses = PoseBuffer(p.buffer_length, _ns(p.jump_back_s), _ns(p.max_gap_s))
         self.max_extrap_ns, self.max_hold_ns, self.jump_ns = _ns(p.max_extrapolation_s), _ns(p.max_hold_s), _ns(p.jump_back_s)
         self.held: list[Image] = []                    # sorted by stamp

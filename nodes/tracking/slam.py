@@ -41,26 +41,24 @@ from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
 from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
-from probeless.nodes.tracking.slam_io import open_trajectory, pose_param, srgb8
+from probeless.color import quantize8
+from probeless.nodes.tracking.slam_io import open_trajectory, pose_param, pose_problem
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ApproximateTimeSync, ExactTimeSync
-from probeless.errors import SchemaError
 from probeless.tracking.dense import DenseSlam, SlamParams
 from probeless.tracking.slam_params import GRID_ROTATION_DEG
 from probeless.tracking.weighted_icp import KINECT_SIGMA
 from probeless.tracking.tum import write_tum_lines
 
-def _angles(values, node_id: str) -> tuple[float, float, float]:
-    if len(values) != 3 or not all(np.isfinite(float(v)) for v in values):
-        raise SchemaError(f"node {node_id!r}: key 'grid_rotation_deg': needs 3 finite angles, got {list(values)}")
-    return tuple(float(v) for v in values)
+
+def _sigma_problem(v: tuple[float, ...]) -> str | None:
+    """depth_sigma's rule (a param check; length and finiteness are declared): a > 0, b >= 0."""
+    return None if v[0] > 0 and v[1] >= 0 else f"needs a b z0, finite, a > 0, b >= 0; got {list(v)}"
 
 
-def _sigma(values, node_id: str) -> tuple[float, float, float]:
-    v = tuple(float(x) for x in values)
-    if len(v) != 3 or not all(np.isfinite(v)) or v[0] <= 0 or v[1] < 0:
-        raise SchemaError(f"node {node_id!r}: key 'depth_sigma': needs a b z0, finite, a > 0, b >= 0; got {list(values)}")
-    return v
+def _depth_min_problem(depth_min: float, p) -> str | None:
+    """depth_min's rule against depth_max (a param check; SlamParams needs 0 < depth_min < depth_max)."""
+    return None if 0 < depth_min < p.depth_max else f"needs 0 < depth_min < depth_max ({p.depth_max}), got {depth_min}"
 
 
 HOLD_MAX = 30  # first pairs held while camera_info or the initial pose is still on its way
@@ -78,7 +76,8 @@ class DenseSlamNode(Node):
         voxel_size: float = param(0.01, min=0.001, max=0.5, doc="TSDF voxel edge [m]")
         block_count: int = param(10000, min=100, doc="initial voxel-block hash map capacity, grows when full [blocks]")
         depth_max: float = param(3.0, min=0.2, max=20.0, doc="depth used for tracking and mapping [m]")
-        depth_min: float = param(0.1, min=0.0, max=10.0, doc="nearest raycast depth [m]")
+        depth_min: float = param(0.1, min=0.0, max=10.0, check=_depth_min_problem,
+                                 doc="nearest raycast depth [m]; 0 < depth_min < depth_max")
         depth_diff: float = param(0.07, min=0.001, max=1.0, doc="ICP correspondence distance [m]")
         trunc_voxel_multiplier: float = param(8.0, min=1.0, max=64.0, doc="TSDF truncation in voxels")
         scale: float = param(0.5, choices=(1.0, 0.5, 0.25), doc="track and map at this fraction of the resolution")
@@ -88,18 +87,21 @@ class DenseSlamNode(Node):
         max_translation_m: float = param(0.3, min=0.0, doc="larger motion per frame = lost [m]")
         max_rotation_deg: float = param(30.0, min=0.0, max=180.0, doc="larger rotation per frame = lost [deg]")
         min_valid_fraction: float = param(0.05, min=0.0, max=1.0, doc="less valid depth = invalid input [fraction]")
-        grid_rotation_deg: tuple[float, ...] = param(GRID_ROTATION_DEG, doc="TSDF grid axes against the world, "
+        grid_rotation_deg: tuple[float, ...] = param(GRID_ROTATION_DEG, length=3, finite=True,
+                                                     doc="TSDF grid axes against the world, "
                                                      "xyz Euler [deg] (3 values; see SlamParams)")
         integrate_nearest_pixel: bool = param(True, doc="integrate each voxel from its nearest pixel (Open3D "
                                                         "alone takes the pixel up-left of it)")
         depth_weighting: bool = param(True, doc="refine each pose with points weighted by their depth noise "
                                                 "(off for depth whose noise does not grow with distance)")
-        depth_sigma: tuple[float, ...] = param(KINECT_SIGMA, doc="depth noise sigma(z) = a + b (z - z0)^2 [m]: "
-                                                                 "a b z0 (default Kinect v1)")
+        depth_sigma: tuple[float, ...] = param(KINECT_SIGMA, length=3, finite=True, check=_sigma_problem,
+                                               doc="depth noise sigma(z) = a + b (z - z0)^2 [m]: "
+                                               "a b z0 (default Kinect v1)")
         refine_iterations: int = param(10, min=1, max=100, doc="Gauss-Newton steps of the weighted refinement, at most")
         refine_step: int = param(4, min=1, max=64, doc="every n-th pixel in the weighted refinement")
-        initial_pose: tuple[float, ...] = param((), doc="world_from_rgbd of the first frame: tx ty tz qx qy qz qw; "
-                                                        "empty = identity (or the initial_pose input)")
+        initial_pose: tuple[float, ...] = param((), length=(0, 7), finite=True, check=pose_problem,
+                                                doc="world_from_rgbd of the first frame: tx ty tz qx qy qz qw; "
+                                                "empty = identity (or the initial_pose input)")
         wait_for_initial_pose: bool = param(False, doc="skip frames until the initial_pose input has a pose")
         slop_s: float = param(0.0, min=0.0, max=1.0, doc="rgb/depth pairing: 0 = identical stamps, else "
                                                          "nearest within this [s]")
@@ -116,10 +118,10 @@ class DenseSlamNode(Node):
             depth_diff=p.depth_diff, trunc_voxel_multiplier=p.trunc_voxel_multiplier, scale=p.scale,
             integrate_every=p.integrate_every, raycast_every=p.raycast_every, min_fitness=p.min_fitness,
             max_translation_m=p.max_translation_m, max_rotation_deg=p.max_rotation_deg,
-            grid_rotation_deg=_angles(p.grid_rotation_deg, self.ctx.node_id),
+            grid_rotation_deg=tuple(p.grid_rotation_deg),
             integrate_nearest_pixel=p.integrate_nearest_pixel,
             min_valid_fraction=p.min_valid_fraction, depth_weighting=p.depth_weighting,
-            depth_sigma=_sigma(p.depth_sigma, self.ctx.node_id), refine_iterations=p.refine_iterations,
+            depth_sigma=tuple(p.depth_sigma), refine_iterations=p.refine_iterations,
             refine_step=p.refine_step)
         self.T0 = pose_param(p.initial_pose, self.ctx.node_id)
         self.slam: DenseSlam | None = None
@@ -259,11 +261,11 @@ class DenseSlamNode(Node):
         if out in ("points", "both"):
             with self.ctx.timed("extract_points"):
                 pts, cols = self.slam.extract_pointcloud(self.params.model_max_points)
-            self.ctx.publish("model/points", PointCloud(header, pts, srgb8(cols)))
+            self.ctx.publish("model/points", PointCloud(header, pts, quantize8(cols)))  # sRGB values 0..1
         if out in ("mesh", "both"):
             with self.ctx.timed("extract_mesh"):
                 v, tri, cols = self.slam.extract_mesh()
-            self.ctx.publish("model/mesh", TriangleMesh(header, v, tri, vertex_colors=srgb8(cols)))
+            self.ctx.publish("model/mesh", TriangleMesh(header, v, tri, vertex_colors=quantize8(cols)))
 
     def on_input_closed(self, name: str) -> None:
         self.closed.add(name)

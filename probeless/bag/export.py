@@ -24,6 +24,7 @@ import numpy as np
 
 from probeless.bag.reader import BagMessage, BagReader
 from probeless.bag.writer import recording_paths
+from probeless.color import to_srgb8
 from probeless.errors import BagError
 from probeless.progress import progress as progress_bar
 
@@ -47,13 +48,6 @@ class ExportSummary:
 
 # -- conversions ---------------------------------------------------------------------------------
 
-def srgb8(linear: np.ndarray) -> np.ndarray:
-    """Linear [0, 1] floats -> uint8 sRGB (clipped; NaN -> 0)."""
-    x = np.clip(np.nan_to_num(linear.astype(np.float32), nan=0.0), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return np.round(s * 255).astype(np.uint8)
-
-
 def _display_image(msg: Any, topic: str, summary: ExportSummary) -> tuple[np.ndarray, str]:
     """(pixels, encoding) of an Image in an encoding both Foxglove and PNG can hold."""
     data, enc = msg.data, msg.encoding
@@ -62,7 +56,7 @@ def _display_image(msg: Any, topic: str, summary: ExportSummary) -> tuple[np.nda
             return data.astype("<f4"), "32FC1"
         summary.note(f"{topic}: {enc} (linear float) written as {'rgba8' if data.shape[2] == 4 else 'rgb8'}"
                      " through the sRGB curve")
-        return srgb8(data), "rgba8" if data.shape[2] == 4 else "rgb8"
+        return to_srgb8(data), "rgba8" if data.shape[2] == 4 else "rgb8"
     if enc == "rgb16":
         summary.note(f"{topic}: rgb16 written as rgb8 (high byte)")
         return (data >> 8).astype(np.uint8), "rgb8"
@@ -103,7 +97,7 @@ def _fox_pose(msg, topic, s):
 
 
 def _colors8(colors: np.ndarray) -> np.ndarray:
-    return colors if colors.dtype == np.uint8 else srgb8(colors)
+    return colors if colors.dtype == np.uint8 else to_srgb8(colors)
 
 
 def _fox_cloud(msg, topic, s):
@@ -257,7 +251,7 @@ def _png_pixels(msg: Any, type_name: str, topic: str, summary: ExportSummary) ->
     pixels, enc = _display_image(msg, topic, summary)
     if enc == "32FC1":
         summary.note(f"{topic}: mono float written as 8-bit through the sRGB curve")
-        pixels, enc = srgb8(pixels), "mono8"
+        pixels, enc = to_srgb8(pixels), "mono8"
     if enc in ("rgb8", "rgb16"):
         return pixels[..., ::-1]
     if enc == "rgba8":

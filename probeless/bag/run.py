@@ -14,9 +14,8 @@ from probeless.bag.schema import check_schemas
 from probeless.errors import BagError
 from probeless.launch.graph import Graph
 from probeless.launch.launcher import Launcher, load_checked
-from probeless.launch.replay import PLAYER_ID, add_player, add_player_node, add_recorder
+from probeless.launch.replay import PLAYER_ID, add_player, add_player_node, add_recorder, parse_remaps
 from probeless.launch.validate import validate
-from probeless.nodes.bag.player import parse_remaps
 
 
 def add_replay_options(p: argparse.ArgumentParser, prefix: str = "") -> None:

@@ -23,6 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from probeless.cameras.base import CameraModel, normalize_rows
 from probeless.errors import CalibrationError
+from probeless.geom.rotation import transform_from, transform_from_rpy
 
 DEFAULT_INIT_RPY_DEG = (-90.0, 0.0, 0.0)
 MIN_MATCHES = 6
@@ -46,16 +47,9 @@ class ExtrinsicsReport:
         return {k: (float(v) if isinstance(v, float) else int(v)) for k, v in asdict(self).items()}
 
 
-def transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """4x4 float64 rigid transform from a rotation matrix and a translation."""
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, np.ravel(t)
-    return T
-
-
 def from_rpy(translation, rpy_deg) -> np.ndarray:
     """4x4 transform from translation [m] and rpy_deg (scipy ``from_euler('xyz', ..., degrees=True)``)."""
-    return transform(Rotation.from_euler("xyz", rpy_deg, degrees=True).as_matrix(), translation)
+    return transform_from_rpy(translation, rpy_deg)
 
 
 def to_rpy(T: np.ndarray) -> tuple[list[float], list[float]]:
@@ -127,14 +121,14 @@ def solve_fisheye_from_rgbd(points_rgbd: np.ndarray, pixels_fisheye: np.ndarray,
                                    f"of {len(P)} matches, need at least {MIN_MATCHES}")
         sol = least_squares(px_residuals, x, method="lm", x_scale="jac", args=(np.flatnonzero(inliers),))
         x, nfev, rounds = sol.x, nfev + sol.nfev, rounds + 1
-        err = reprojection_errors(transform(*_pose(x, R0)), P, uv, fisheye)
+        err = reprojection_errors(transform_from(*_pose(x, R0)), P, uv, fisheye)
         err[~usable] = np.inf
         threshold = max(outlier_px, 5.0 * float(np.median(err[inliers])))
         new = err <= threshold
         if np.array_equal(new, inliers):
             break
         inliers = new
-    T = transform(*_pose(x, R0))
+    T = transform_from(*_pose(x, R0))
     e = err[inliers]
     report = ExtrinsicsReport(float(np.sqrt(np.mean(e * e))), float(np.median(e)), int(inliers.sum()), len(P),
                               rounds, int(nfev), float(threshold))

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from probeless.errors import GeometryError
-from probeless.scene.polygon import self_intersection, signed_area
+from probeless.geom.floorplan import check_ceiling_height, check_floorplan
 
 FLOOR, CEILING = "floor", "ceiling"
 
@@ -62,32 +62,13 @@ class AtlasLayout:
         return tuple(s for s in self.surfaces if s.kind == "wall")
 
 
-def check_floorplan(floorplan: np.ndarray, ceiling_height: float) -> np.ndarray:
-    """The floorplan as float64 (N, 2); GeometryError unless simple, counter-clockwise and N >= 3."""
-    poly = np.asarray(floorplan, np.float64)
-    if poly.ndim != 2 or poly.shape[1] != 2 or len(poly) < 3:
-        raise GeometryError(f"floorplan must be (N >= 3, 2) vertices, got shape {poly.shape}")
-    if not np.isfinite(poly).all():
-        raise GeometryError("floorplan has non-finite vertices")
-    bad = self_intersection(poly)  # first: a bow tie's zero area is no orientation problem
-    if bad is not None:
-        raise GeometryError(f"floorplan edges {bad[0]} and {bad[1]} intersect: not a simple polygon")
-    if signed_area(poly) <= 0:
-        raise GeometryError("floorplan must be counter-clockwise seen from above (positive area)")
-    if not (math.isfinite(ceiling_height) and ceiling_height > 0):
-        raise GeometryError(f"ceiling_height must be > 0 m, got {ceiling_height}")
-    return poly
-
-
 def _surfaces_m(poly: np.ndarray, h: float) -> list[tuple]:
     """(name, kind, origin, u, v, normal, size_m) for every surface, before packing."""
     out = []
     down = np.array([0.0, 0.0, -1.0])
     for i in range(len(poly)):
         a, b = poly[i], poly[(i + 1) % len(poly)]
-        length = float(np.linalg.norm(b - a))
-        if length <= 0:
-            raise GeometryError(f"floorplan vertices {i} and {(i + 1) % len(poly)} coincide")
+        length = float(np.linalg.norm(b - a))  # > 0: check_floorplan rejects coinciding vertices
         u = np.array([*(b - a) / length, 0.0])
         inward = np.array([-u[1], u[0], 0.0])  # left of a->b is inside a counter-clockwise polygon
         out.append((f"wall{i}", "wall", np.array([a[0], a[1], h]), u, down, inward, (length, h)))
@@ -119,7 +100,8 @@ def _shelf_pack(sizes: list[tuple[int, int]], width: int, padding: int) -> tuple
 def layout_atlas(floorplan: np.ndarray, ceiling_height: float, texels_per_m: float, *,
                  width: int | None = None, padding: int = 2) -> AtlasLayout:
     """Pack the prism's surfaces at ``texels_per_m`` into an atlas ``width`` texels wide (default: ~square)."""
-    poly = check_floorplan(floorplan, ceiling_height)
+    poly = check_floorplan(floorplan)
+    check_ceiling_height(ceiling_height)
     if not (math.isfinite(texels_per_m) and texels_per_m > 0):
         raise GeometryError(f"texels_per_m must be > 0, got {texels_per_m}")
     raw = _surfaces_m(poly, float(ceiling_height))

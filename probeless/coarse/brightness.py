@@ -24,7 +24,7 @@ from probeless.coarse.project import project_columns, sample_columns
 from probeless.coarse.texels import TexelMap
 from probeless.coarse.visibility import is_convex, visibility_polygon
 from probeless.errors import SchemaError
-from probeless.messages.geometry import invert_transform
+from probeless.geom.rotation import invert_transform
 
 DARK = 0.01           # a value is black when all channels are <= this [0..1]
 SATURATED = 0.98      # a value is saturated when any channel is >= this [0..1]

@@ -22,18 +22,11 @@ from probeless.coarse.atlas import AtlasLayout
 from probeless.coarse.texels import TexelMap
 from probeless.coarse.visibility import is_convex, visibility_polygon
 from probeless.errors import CalibrationError
-from probeless.scene.gl import create_context, current_context, load_program, mat_bytes, set_uniforms
+from probeless.gl.context import create_context, current_context
+from probeless.gl.programs import load_program, mat_bytes, set_uniforms
+from probeless.gl.textures import upload_texture
 
 SHADERS = Path(__file__).with_name("shaders")
-
-
-def _texture(ctx: moderngl.Context, image: np.ndarray, dtype: str = "f4", linear: bool = False) -> moderngl.Texture:
-    h, w = image.shape[:2]
-    comps = 1 if image.ndim == 2 else image.shape[2]
-    tex = ctx.texture((w, h), comps, np.ascontiguousarray(image).tobytes(), dtype=dtype)
-    tex.filter = (moderngl.LINEAR, moderngl.LINEAR) if linear else (moderngl.NEAREST, moderngl.NEAREST)
-    tex.repeat_x = tex.repeat_y = False
-    return tex
 
 
 def check_runtime_model(model) -> OmnidirModel:
@@ -58,10 +51,10 @@ class AtlasTexturer:
         ctx, size = self.ctx, (layout.width, layout.height)
         pos = np.concatenate([texmap.position, texmap.surface[..., None].astype(np.float32)], axis=2)
         nrm = np.concatenate([texmap.normal, np.zeros(texmap.surface.shape + (1,), np.float32)], axis=2)
-        self.positions, self.normals = _texture(ctx, pos), _texture(ctx, nrm)
+        self.positions, self.normals = upload_texture(ctx, pos), upload_texture(ctx, nrm)
         blank = np.zeros((layout.height, layout.width, 4), np.float32)
         blank[..., 3] = -1.0
-        self.atlas = [_texture(ctx, blank), _texture(ctx, blank)]
+        self.atlas = [upload_texture(ctx, blank), upload_texture(ctx, blank)]
         self.fbos = [ctx.framebuffer([t]) for t in self.atlas]
         self.current = 0
         self.occ = ctx.texture(size, 1, dtype="f1")
@@ -109,14 +102,7 @@ class AtlasTexturer:
         self.quads[self.occ_prog].render(moderngl.TRIANGLES, vertices=3)
 
     def _upload_fisheye(self, image: np.ndarray) -> moderngl.Texture:
-        h, w = image.shape[:2]
-        if self._fisheye is None or self._fisheye.size != (w, h):
-            if self._fisheye is not None:
-                self._fisheye.release()
-            self._fisheye = self.ctx.texture((w, h), 3, dtype="f1")
-            self._fisheye.filter = (moderngl.LINEAR, moderngl.LINEAR)
-            self._fisheye.repeat_x = self._fisheye.repeat_y = False
-        self._fisheye.write(np.ascontiguousarray(image, np.uint8).tobytes())
+        self._fisheye = upload_texture(self.ctx, np.asarray(image, np.uint8), self._fisheye, filter="linear")
         return self._fisheye
 
     @current_context

@@ -17,7 +17,7 @@ import numpy as np
 
 from probeless.cameras.base import CameraModel
 from probeless.cameras.omnidir import OmnidirModel
-from probeless.messages.geometry import invert_transform
+from probeless.geom.rotation import invert_transform
 
 
 def camera_columns(positions: np.ndarray, world_from_fisheye: np.ndarray) -> tuple[np.ndarray, ...]:

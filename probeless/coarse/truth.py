@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from probeless.coarse.atlas import AtlasLayout, AtlasSurface
-from probeless.scene.rig import linear_to_srgb
+from probeless.color import linear_to_srgb
 
 STANDOFF_M = 0.02  # camera distance from the surface: surface-mounted windows (2 mm) and ceiling panels (1 cm) count as the surface
 

@@ -14,7 +14,10 @@ import numpy as np
 
 from probeless.coarse.atlas import AtlasLayout
 from probeless.coarse.texels import coarse_mesh
-from probeless.scene.gl import clip_from_camera, create_context, current_context, load_program, mat_bytes
+from probeless.geom.projection import clip_from_camera
+from probeless.gl.context import create_context, current_context
+from probeless.gl.programs import load_program, mat_bytes
+from probeless.gl.textures import upload_texture
 
 SHADERS = Path(__file__).with_name("shaders")
 GREEN, ORANGE, WHITE = (0.2, 0.9, 0.3), (1.0, 0.55, 0.1), (1.0, 1.0, 1.0)
@@ -90,7 +93,7 @@ class ModelView:
         self.n_no_ceiling = int(np.sum(surface != self.ceiling))
         self.n_all = len(tris)
         data = np.hstack([v, uv]).astype("f4")
-        self.mesh_prog = load_program(self.ctx, "meshview", shader_dir=SHADERS)
+        self.mesh_prog = load_program(self.ctx, "meshview", shader_dir=SHADERS, vertex="textured_mesh")
         self.line_prog = load_program(self.ctx, "lines", shader_dir=SHADERS)
         self.vbo = self.ctx.buffer(data.tobytes())
         self.ibo = self.ctx.buffer(tris.astype("i4").tobytes())
@@ -105,9 +108,7 @@ class ModelView:
         w, h = size
         img = np.asarray(atlas_rgb)
         img = (np.clip(img, 0, 1) * 255).astype(np.uint8) if img.dtype != np.uint8 else img
-        tex = self.ctx.texture((img.shape[1], img.shape[0]), 3, np.ascontiguousarray(img[::-1, :, :3]).tobytes())
-        tex.build_mipmaps()
-        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex = upload_texture(self.ctx, img[::-1, :, :3], filter="trilinear", repeat=True)
         fbo = self.ctx.simple_framebuffer((w, h))
         fbo.use()
         fbo.clear(0.08, 0.08, 0.1, 1.0)

@@ -2,7 +2,8 @@
 
 The coarse model is a right prism, so it hides parts of itself only through its floorplan: a
 texel can be seen when its floor point lies in the visibility polygon of the floorplan from the
-camera's floor position. Floorplans are (N, 2) float64 vertex arrays, counter-clockwise, not closed.
+camera's floor position. Floorplans are (N, 2) float64 vertex arrays, counter-clockwise, not closed,
+checked by :func:`probeless.geom.floorplan.check_floorplan`.
 """
 
 from __future__ import annotations
@@ -10,62 +11,10 @@ from __future__ import annotations
 import numpy as np
 
 from probeless.errors import GeometryError
-from probeless.scene.polygon import contains, distance_to_boundary, signed_area
+from probeless.geom.floorplan import check_floorplan, tolerance
+from probeless.geom.polygon import contains, cross2, distance_to_boundary, signed_area
 
-REL_TOL = 1e-9     # lengths below REL_TOL * room size [m] count as zero
 ANG_TOL = 1e-12    # directions from the viewpoint closer than this [rad] are one ray
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
-def _tol(poly: np.ndarray) -> float:
-    return REL_TOL * max(1.0, float(np.ptp(poly, axis=0).max()))
-
-
-def check_floorplan(floorplan) -> np.ndarray:
-    """``floorplan`` as float64 (N, 2); GeometryError unless a simple counter-clockwise polygon, N >= 3.
-
-    Collinear consecutive vertices are allowed; repeated vertices, edges folding back on each
-    other and touching or crossing edges are not. O(N^2), vectorised.
-    """
-    poly = np.asarray(floorplan, dtype=np.float64)
-    if poly.ndim != 2 or poly.shape[1] != 2 or len(poly) < 3:
-        raise GeometryError(f"floorplan must be an (N, 2) array with N >= 3 vertices, got shape {poly.shape}")
-    if not np.all(np.isfinite(poly)):
-        raise GeometryError("floorplan has non-finite coordinates")
-    n, tol = len(poly), _tol(poly)
-    a, edge = poly, np.roll(poly, -1, axis=0) - poly
-    length = np.linalg.norm(edge, axis=1)
-    if np.any(length <= tol):
-        i = int(np.argmax(length <= tol))
-        raise GeometryError(f"floorplan vertices {i} and {(i + 1) % n} coincide")
-    nxt = np.roll(edge, -1, axis=0)
-    fold = (np.abs(_cross(edge, nxt)) <= tol * np.roll(length, -1)) & (np.sum(edge * nxt, axis=1) < 0)
-    if np.any(fold):
-        raise GeometryError(f"floorplan folds back on itself at vertex {(int(np.argmax(fold)) + 1) % n}")
-    # o0[i, j]: signed distance of vertex j from the line of edge i, t0 its position along edge i (0..1);
-    # edge j's second endpoint is vertex j + 1
-    dx, dy = a[None, :, 0] - a[:, None, 0], a[None, :, 1] - a[:, None, 1]
-    ex, ey = edge[:, 0:1], edge[:, 1:2]
-    o0, t0 = (ex * dy - ey * dx) / length[:, None], (ex * dx + ey * dy) / (length ** 2)[:, None]
-    o1, t1 = np.roll(o0, -1, axis=1), np.roll(t0, -1, axis=1)
-    straddle, clear = o0 * o1 < 0, np.minimum(np.abs(o0), np.abs(o1)) > tol
-    proper = straddle & straddle.T & clear & clear.T
-    slack = (tol / length)[:, None]
-    touch = np.zeros((n, n), bool)
-    for o, t in ((o0, t0), (o1, t1)):   # an endpoint of edge j within tol of segment i
-        touch |= (np.abs(o) <= tol) & (t >= -slack) & (t <= 1 + slack)
-    bad = proper | touch | touch.T
-    i, j = np.indices((n, n))
-    bad &= (j > i + 1) & ~((i == 0) & (j == n - 1))
-    if np.any(bad):
-        i, j = (int(v) for v in np.argwhere(bad)[0])
-        raise GeometryError(f"floorplan is not simple: edges {i} and {j} touch or cross")
-    if signed_area(poly) <= 0:
-        raise GeometryError("floorplan must be counter-clockwise (its signed area is not positive)")
-    return poly
 
 
 def is_convex(floorplan) -> bool:
@@ -73,7 +22,7 @@ def is_convex(floorplan) -> bool:
     poly = check_floorplan(floorplan)
     edge = np.roll(poly, -1, axis=0) - poly
     nxt = np.roll(edge, -1, axis=0)
-    return bool(np.all(_cross(edge, nxt) >= -_tol(poly) * np.linalg.norm(nxt, axis=1)))
+    return bool(np.all(cross2(edge, nxt) >= -tolerance(poly) * np.linalg.norm(nxt, axis=1)))
 
 
 def _locate(poly: np.ndarray, p: np.ndarray, tol: float) -> tuple[str, int, np.ndarray]:
@@ -100,7 +49,7 @@ def _rel_angles(rel: np.ndarray, unit: np.ndarray, ref: np.ndarray) -> tuple[np.
     """Counter-clockwise angles [0, 2 pi) of directions ``rel`` from ``ref``, and which point along ``ref``."""
     ang = np.mod(np.arctan2(rel[:, 1], rel[:, 0]) - np.arctan2(ref[1], ref[0]), 2 * np.pi)
     r = ref / np.linalg.norm(ref)
-    return ang, (np.abs(_cross(r, unit)) <= ANG_TOL) & (unit @ r > 0)
+    return ang, (np.abs(cross2(r, unit)) <= ANG_TOL) & (unit @ r > 0)
 
 
 def _first_hits(poly: np.ndarray, p: np.ndarray, d: np.ndarray, label: np.ndarray,
@@ -114,7 +63,7 @@ def _first_hits(poly: np.ndarray, p: np.ndarray, d: np.ndarray, label: np.ndarra
     rays = np.arange(len(d))[:, None]
     u, w = poly, np.roll(poly, -1, axis=0)
     on_u, on_w = label[None, :] == rays, np.roll(label, -1)[None, :] == rays
-    su, sw = _cross(d[:, None], (u - p)[None]), _cross(d[:, None], (w - p)[None])
+    su, sw = cross2(d[:, None], (u - p)[None]), cross2(d[:, None], (w - p)[None])
     with np.errstate(divide="ignore", invalid="ignore"):
         cut = u[None] + (su / (su - sw))[..., None] * (w - u)[None]   # NaN/inf where the edge is parallel
         t_cut = (cut[..., 0] - p[0]) * d[:, 0:1] + (cut[..., 1] - p[1]) * d[:, 1:2]
@@ -141,7 +90,7 @@ def _simplify(pts: np.ndarray, tol: float) -> np.ndarray:
         pts = pts[np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1) > tol]
         ab, bc = pts - np.roll(pts, 1, axis=0), np.roll(pts, -1, axis=0) - pts
         ac = ab + bc
-        straight = (np.sum(ab * bc, axis=1) > 0) & (np.abs(_cross(ac, ab)) <= tol * np.linalg.norm(ac, axis=1))
+        straight = (np.sum(ab * bc, axis=1) > 0) & (np.abs(cross2(ac, ab)) <= tol * np.linalg.norm(ac, axis=1))
         if not straight.any():
             break
         pts = pts[~straight]
@@ -163,7 +112,7 @@ def visibility_polygon(floorplan, viewpoint) -> np.ndarray:
     GeometryError for an invalid floorplan or a viewpoint outside it.
     """
     poly = check_floorplan(floorplan)
-    n, tol = len(poly), _tol(poly)
+    n, tol = len(poly), tolerance(poly)
     p = np.asarray(viewpoint, dtype=np.float64).reshape(-1)
     if p.shape != (2,) or not np.all(np.isfinite(p)):
         raise GeometryError(f"viewpoint must be two finite numbers, got {np.asarray(viewpoint).tolist()}")
@@ -212,17 +161,17 @@ def visible_from(floorplan, viewpoint, points) -> np.ndarray:
     or checked. O(K N), independent of :func:`visibility_polygon`; for tests and references.
     """
     poly = check_floorplan(floorplan)
-    tol = _tol(poly)
+    tol = tolerance(poly)
     p = np.asarray(viewpoint, dtype=np.float64).reshape(2)
     q = np.atleast_2d(np.asarray(points, dtype=np.float64))
     a, edge = poly, np.roll(poly, -1, axis=0) - poly
     elen = np.linalg.norm(edge, axis=1)
     dq = q - p
     qlen = np.maximum(np.linalg.norm(dq, axis=1), 1e-150)[:, None]
-    oa = _cross(dq[:, None], (a - p)[None]) / qlen               # vertices' distances from each segment's line
+    oa = cross2(dq[:, None], (a - p)[None]) / qlen               # vertices' distances from each segment's line
     ob = np.roll(oa, -1, axis=1)
-    op = _cross(edge, p - a)[None] / elen                         # segment ends' distances from each edge's line
-    oq = _cross(edge[None], q[:, None] - a[None]) / elen[None]
+    op = cross2(edge, p - a)[None] / elen                         # segment ends' distances from each edge's line
+    oq = cross2(edge[None], q[:, None] - a[None]) / elen[None]
     proper = (oa * ob < 0) & (op * oq < 0) & (np.minimum(np.abs(oa), np.abs(ob)) > tol) \
         & (np.minimum(np.abs(op), np.abs(oq)) > tol)
     ta = np.sum((a[None] - p) * dq[:, None], axis=2) / qlen ** 2

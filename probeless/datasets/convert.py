@@ -19,7 +19,7 @@ from probeless.datasets.base import RgbdSequence, read_depth
 from probeless.datasets.textfiles import write_open3d_intrinsics
 from probeless.datasets.tum import DEPTH_SCALE
 from probeless.errors import DatasetError
-from probeless.messages.geometry import quat_from_matrix
+from probeless.geom.rotation import quat_from_matrix
 
 
 def tum_stamp(stamp_ns: int) -> str:

@@ -22,15 +22,11 @@ from typing import Callable, Iterator
 
 from probeless.messages.base import Message
 from probeless.messages.header import shift_stamp
-from probeless.nodes.bag.player import PRECISE_SLEEP_S, ReadAhead
+from probeless.runtime.pacing import Pacer, ReadAhead
 
 Group = tuple[int, list[tuple[str, Message]]]
 READ_AHEAD_FRAMES = 8
 STAMPS = ("dataset", "wall")
-
-
-
-
 
 class Playback:
     """Publishes the groups of ``make_groups(pass)`` through ``ctx`` (see the module docstring)."""
@@ -44,7 +40,7 @@ class Playback:
         self.passes = 0
         self.published = 0
         self.pending: Group | None = None
-        self.t0: float | None = None
+        self.pacer = Pacer(rate) if rate > 0 else None
         self.first_stamp: int | None = None
         self.ahead: ReadAhead | None = None
         self._restart()
@@ -54,7 +50,7 @@ class Playback:
         if self.ahead is not None:
             self.ahead.stop()
         k = self.passes
-        self.ahead = ReadAhead(lambda: self.make_groups(k), size=READ_AHEAD_FRAMES)
+        self.ahead = ReadAhead(lambda: self.make_groups(k), size=READ_AHEAD_FRAMES, name="frame-read-ahead")
         self.ahead.start()
 
     def step(self) -> None:
@@ -66,17 +62,14 @@ class Playback:
                     self._at_end()
                     return
             stamp, msgs = self.pending
-            now = time.monotonic()
-            if self.t0 is None:
-                self.t0, self.first_stamp = now, stamp
-            if self.rate > 0:
-                due = self.t0 + (stamp - self.first_stamp) / 1e9 / self.rate
-                if due - now > PRECISE_SLEEP_S:
+            if self.first_stamp is None:
+                self.first_stamp = stamp
+            if self.pacer is not None:
+                lag = self.pacer.wait((stamp - self.first_stamp) / 1e9)
+                if lag is None:
                     return
-                if due > now:
-                    time.sleep(due - now)
-                elif now - due > self.max_lag_s:
-                    self.t0 += now - due
+                if lag > self.max_lag_s:
+                    self.pacer.shift(lag)
             else:
                 self.ctx.wait_quiescent()
             offset = self.ctx.now_ns() - stamp if self.wall else 0

@@ -23,7 +23,7 @@ from probeless.datasets.base import Intrinsics, RgbdFrame, RgbdSequence, check_i
 from probeless.datasets.textfiles import (IntrinsicsOverride, data_lines, find_intrinsics_json, parse_floats,
                                           parse_stamp_ns, read_open3d_intrinsics)
 from probeless.errors import DatasetError
-from probeless.messages.geometry import matrix_from_quat, transform_from
+from probeless.geom.rotation import matrix_from_quat, quat_from_matrix, slerp, transform_from
 
 DEPTH_SCALE = 5000.0
 # https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats (colour camera, 640x480)
@@ -79,18 +79,9 @@ def associate(a_ns: np.ndarray, b_ns: np.ndarray, max_dt_ns: int) -> list[tuple[
 
 
 def slerp_pose(T0: np.ndarray, T1: np.ndarray, s: float) -> np.ndarray:
-    """Pose a fraction ``s`` of the way from T0 to T1 (linear translation, geodesic rotation)."""
-    R0, R1 = T0[:3, :3], T1[:3, :3]
-    rel = R0.T @ R1
-    angle = np.arccos(np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0))
-    if angle < 1e-12:
-        R = R0
-    else:  # Rodrigues on the relative rotation's axis; fine away from 180 degrees (consecutive samples)
-        axis = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]]) / (2 * np.sin(angle))
-        k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-        a = s * angle
-        R = R0 @ (np.eye(3) + np.sin(a) * k + (1 - np.cos(a)) * k @ k)
-    return transform_from(R, (1 - s) * T0[:3, 3] + s * T1[:3, 3])
+    """Pose a fraction ``s`` of the way from T0 to T1 (linear translation, quaternion slerp rotation)."""
+    q = slerp(quat_from_matrix(T0[:3, :3]), quat_from_matrix(T1[:3, :3]), s)
+    return transform_from(matrix_from_quat(q), (1 - s) * T0[:3, 3] + s * T1[:3, 3])
 
 
 def pose_at(stamp_ns: int, gt_ns: np.ndarray, gt_poses: np.ndarray, max_dt_ns: int) -> np.ndarray | None:

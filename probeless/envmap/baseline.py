@@ -9,7 +9,7 @@ room is observed; never-seen texels stay black (``observed`` False).
 
 Because translation is ignored, the map is the same for every virtual object. The faces are camera
 LDR colour (sRGB-encoded fisheye output / 255), the units of the coarse atlas. For the paper's
-"baseline + dense model", draw the dense model over :attr:`BaselineEnvmap.faces` (cubemap renderer).
+"baseline + dense model", draw the dense model over :attr:`BaselineMap.faces` (cubemap renderer).
 """
 
 from __future__ import annotations
@@ -20,13 +20,8 @@ from probeless.cameras.base import CameraModel
 from probeless.coarse.project import project_columns, sample_columns
 from probeless.errors import ProbelessError, SchemaError
 from probeless.messages.header import Header
-from probeless.messages.lighting import Cubemap, texel_direction
-
-
-def cube_directions(size: int) -> np.ndarray:
-    """(6 * size * size, 3) float64 unit world directions of every cube texel, in [face, row, col] order."""
-    row, col = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
-    return np.concatenate([texel_direction(f, row, col, size).reshape(-1, 3) for f in range(6)])
+from probeless.geom.cube import cube_directions
+from probeless.messages.lighting import Cubemap
 
 
 def rotation_only(world_from_fisheye: np.ndarray) -> np.ndarray:
@@ -38,7 +33,7 @@ def rotation_only(world_from_fisheye: np.ndarray) -> np.ndarray:
     return T
 
 
-class BaselineEnvmap:
+class BaselineMap:
     """Accumulating fisheye-to-cubemap map; see the module doc."""
 
     def __init__(self, face_size: int, fisheye_model: CameraModel, fov_deg: float):
@@ -47,7 +42,8 @@ class BaselineEnvmap:
         if not 0 < fov_deg < 360:
             raise ProbelessError(f"baseline envmap: fov_deg must be in (0, 360), got {fov_deg}")
         self.size, self.model, self.fov_deg = int(face_size), fisheye_model, float(fov_deg)
-        self.directions = cube_directions(self.size)  # built once: ~0.4 M texels at 256^2 faces
+        # [face, row, col] order, built once: ~0.4 M texels at 256^2 faces
+        self.directions = cube_directions(self.size).reshape(-1, 3)
         self.faces = np.zeros((6, self.size, self.size, 3), np.float32)  # camera LDR 0..1
         self.observed = np.zeros((6, self.size, self.size), bool)
         self.frames = 0

@@ -23,13 +23,10 @@ import numpy as np
 from probeless.coarse.atlas import AtlasLayout
 from probeless.coarse.texels import coarse_mesh
 from probeless.errors import ProbelessError
-from probeless.scene.gl import (
-    create_context,
-    cube_face_clip_from_world,
-    current_context,
-    load_program,
-    mat_bytes,
-)
+from probeless.geom.cube import cube_face_clip_from_world
+from probeless.gl.context import create_context, current_context
+from probeless.gl.programs import load_program, mat_bytes
+from probeless.gl.textures import float_target, upload_texture
 
 SHADERS = Path(__file__).with_name("shaders")
 NEAR_M = 0.01
@@ -99,7 +96,7 @@ class EnvmapRenderer:
         self.ctx = ctx or create_context()
         self.layout = layout
         v, t, uv, _ = coarse_mesh(layout)
-        self.coarse_prog = load_program(self.ctx, "cube_coarse", shader_dir=SHADERS)
+        self.coarse_prog = load_program(self.ctx, "cube_coarse", shader_dir=SHADERS, vertex="textured_mesh")
         self.dense_prog = load_program(self.ctx, "cube_dense", shader_dir=SHADERS)
         self.flat_prog = load_program(self.ctx, "cube_flat", shader_dir=SHADERS)
         self._buffers = [self.ctx.buffer(np.hstack([v, uv]).astype("f4").tobytes()),
@@ -128,14 +125,9 @@ class EnvmapRenderer:
                                  f"or {want + (4,)}")
         if img.dtype != np.uint8:
             img = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
-        data = np.ascontiguousarray(img[::-1, :, :3]).tobytes()
-        if self.atlas_tex is None:
-            self.atlas_tex = self.ctx.texture((want[1], want[0]), 3, data)
-            self.atlas_tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        else:
-            self.atlas_tex.write(data)
         # mip levels beyond the padding ring would blend neighbouring surfaces' rectangles
-        self.atlas_tex.build_mipmaps(0, max(0, int(np.log2(max(1, self.layout_padding)))))
+        self.atlas_tex = upload_texture(self.ctx, img[::-1, :, :3], self.atlas_tex, filter="trilinear", repeat=True,
+                                        max_mip_level=max(0, int(np.log2(max(1, self.layout_padding)))))
 
     @current_context
     def set_dense(self, points: np.ndarray, colors: np.ndarray) -> None:
@@ -198,8 +190,7 @@ class EnvmapRenderer:
 
     def _fbo(self, size: int) -> moderngl.Framebuffer:
         if size not in self._fbos:
-            color = self.ctx.texture((size, size), 4, dtype="f4")
-            self._fbos[size] = self.ctx.framebuffer([color], self.ctx.depth_renderbuffer((size, size)))
+            self._fbos[size] = float_target(self.ctx, size, size)
         return self._fbos[size]
 
     @current_context

@@ -19,18 +19,13 @@ from probeless.coarse.brightness import apply_deadband, draw_sample, estimate_de
 from probeless.coarse.frames import FOV_MARGIN_DEG, runtime_model
 from probeless.coarse.model import CoarseConfig, CoarseModel
 from probeless.envmap import metrics as M
-from probeless.envmap.baseline import BaselineEnvmap
+from probeless.envmap.baseline import BaselineMap
 from probeless.envmap.cubemap import EnvmapRenderer
 from probeless.envmap.dense_points import DensePoints
+from probeless.envmap.methods import METHODS, METRICS, VARIANT
 from probeless.envmap.sh import project_cubemap
 from probeless.progress import progress
-from probeless.scene.build import srgb_to_linear
-
-METHODS = ("ours", "baseline", "baseline_dense", "no_inpainting", "no_brightness", "no_dense", "no_occlusion")
-# coarse-model variant each method needs (None: the baseline map)
-VARIANT = {"ours": "full", "no_dense": "full", "no_inpainting": "no_inpainting", "no_brightness": "no_brightness",
-           "no_occlusion": "no_occlusion", "baseline": None, "baseline_dense": None}
-METRICS = ("envmap_psnr", "envmap_ssim", "coverage", "mirror_psnr", "diffuse_psnr", "sh_rel_error")
+from probeless.color import linear_to_srgb, srgb_to_linear
 
 
 @dataclass
@@ -50,7 +45,7 @@ def render_frames(scene_path, duration: float | None, *, stride: int, rgbd_strid
     """Render fisheye and RGB-D frames, the true maps at the evaluation times, and the dense snapshots."""
     from probeless.cameras.undistort import remap
     from probeless.scene.parse import load_scene
-    from probeless.scene.rig import Rig, frame_schedule, linear_to_srgb
+    from probeless.scene.rig import Rig, frame_schedule
 
     scene = load_scene(scene_path)
     rig = Rig(scene, envmaps=False, envmap_size=face_size)
@@ -129,7 +124,7 @@ def run_variant(r: Rendered, variant: str, methods: list[str], *, atlas_size: in
     dense = DensePoints(np.array([o.position for o in objects]))
     delta_sum = np.zeros(3)
     if variant is None:
-        base = BaselineEnvmap(face_size, r.model, fov)
+        base = BaselineMap(face_size, r.model, fov)
         coarse = None
         renderer = EnvmapRenderer(_dummy_layout(scene), ctx=ctx)
     else:

@@ -1,9 +1,9 @@
 """Environment-map accuracy against ground truth (issue 7): PSNR, SSIM, coverage, sphere renders, SH error.
 
-Maps are (6, S, S, 3) cubemaps in the module convention of :mod:`probeless.messages.lighting`.
+Maps are (6, S, S, 3) cubemaps in the convention of :mod:`probeless.messages.lighting` / :mod:`probeless.geom.cube`.
 PSNR and SSIM work in the camera LDR domain: floats 0..1 (sRGB-encoded camera output / 255; uint8
 input is divided by 255), peak 1. Every texel counts the same in PSNR/SSIM (like an image metric
-over the six faces); pass ``weights=texel_solid_angles(S)`` to :func:`envmap_psnr` for a
+over the six faces); pass ``weights=cube_solid_angles(S)`` (:mod:`probeless.geom.cube`) to :func:`envmap_psnr` for a
 per-steradian error instead.
 
 Spheres are drawn orthographically from +X looking at the origin (towards -X), +Z up, so image
@@ -19,9 +19,8 @@ import cv2
 import numpy as np
 
 from probeless.errors import ProbelessError
-from probeless.messages.lighting import sample_cubemap, texel_direction
-from probeless.scene.build import srgb_to_linear
-from probeless.scene.rig import linear_to_srgb
+from probeless.geom.cube import cube_directions, cube_solid_angles, sample_cubemap
+from probeless.color import linear_to_srgb, srgb_to_linear
 
 SSIM_SIGMA, SSIM_RADIUS, SSIM_K1, SSIM_K2 = 1.5, 5, 0.01, 0.03  # Wang et al. 2004: 11x11 Gaussian window
 VIEW, RIGHT, UP = np.array([-1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0])
@@ -89,23 +88,10 @@ def envmap_ssim(est: np.ndarray, ref: np.ndarray) -> float:
     return float(np.mean([ssim_image(a[f], b[f]) for f in range(6)]))
 
 
-def texel_solid_angles(size: int) -> np.ndarray:
-    """(6, size, size) exact solid angle [sr] of every cube texel; they sum to 4 pi.
-
-    The texel [a0, a1] x [b0, b1] on a face plane at distance 1 subtends
-    ``F(a1, b1) - F(a0, b1) - F(a1, b0) + F(a0, b0)`` with ``F(a, b) = atan2(a b, sqrt(a^2 + b^2 + 1))``.
-    """
-    edges = np.linspace(-1.0, 1.0, size + 1)
-    a, b = np.meshgrid(edges, edges, indexing="ij")
-    F = np.arctan2(a * b, np.sqrt(a * a + b * b + 1.0))
-    face = F[1:, 1:] - F[:-1, 1:] - F[1:, :-1] + F[:-1, :-1]
-    return np.broadcast_to(face, (6, size, size)).copy()
-
-
 def coverage(observed: np.ndarray, solid_angles: np.ndarray | None = None) -> float:
     """Fraction of the sphere of directions covered by ``observed`` (6, S, S) texels, solid-angle weighted."""
     obs = np.asarray(observed, bool)
-    omega = texel_solid_angles(obs.shape[1]) if solid_angles is None else np.asarray(solid_angles, np.float64)
+    omega = cube_solid_angles(obs.shape[1]) if solid_angles is None else np.asarray(solid_angles, np.float64)
     return float((omega * obs).sum() / omega.sum())
 
 
@@ -134,7 +120,7 @@ def downsample_faces(faces: np.ndarray, max_size: int) -> np.ndarray:
     f = np.asarray(faces, np.float64)
     while f.shape[1] > max_size and f.shape[1] % 2 == 0:
         s = f.shape[1]
-        w = texel_solid_angles(s)[..., None]
+        w = cube_solid_angles(s)[..., None]
         blocks = (f * w).reshape(6, s // 2, 2, s // 2, 2, -1).sum(axis=(2, 4))
         f = blocks / w.reshape(6, s // 2, 2, s // 2, 2, 1).sum(axis=(2, 4))
     return f
@@ -151,9 +137,8 @@ def render_diffuse_sphere(faces_linear: np.ndarray, size: int, albedo: float = 1
     """
     f = downsample_faces(faces_linear, max_face)
     s = f.shape[1]
-    row, col = np.meshgrid(np.arange(s), np.arange(s), indexing="ij")
-    dirs = np.concatenate([texel_direction(k, row, col, s).reshape(-1, 3) for k in range(6)])
-    weighted = f.reshape(-1, f.shape[-1]) * texel_solid_angles(s).reshape(-1, 1)
+    dirs = cube_directions(s).reshape(-1, 3)
+    weighted = f.reshape(-1, f.shape[-1]) * cube_solid_angles(s).reshape(-1, 1)
     n, inside = sphere_normals(size)
     normals = n[inside]
     irr = np.concatenate([np.clip(normals[i:i + 2048] @ dirs.T, 0, None) @ weighted

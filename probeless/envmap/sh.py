@@ -18,26 +18,7 @@ from math import factorial, pi, sqrt
 import numpy as np
 
 from probeless.errors import ProbelessError
-from probeless.messages.lighting import texel_direction
-
-
-def cube_solid_angles(size: int) -> np.ndarray:
-    """(6, S, S) float64 exact solid angle of every cube texel [sr]; sums to 4 pi.
-
-    A face at unit distance has area element ``dA / (1 + a^2 + b^2)^(3/2)``, whose integral from
-    the face centre to corner (a, b) is ``atan2(a b, sqrt(a^2 + b^2 + 1))``.
-    """
-    edges = np.linspace(-1.0, 1.0, size + 1)
-    a, b = np.meshgrid(edges, edges, indexing="xy")  # b varies along rows
-    f = np.arctan2(a * b, np.sqrt(a * a + b * b + 1.0))
-    omega = f[1:, 1:] - f[:-1, 1:] - f[1:, :-1] + f[:-1, :-1]
-    return np.broadcast_to(omega, (6, size, size)).copy()
-
-
-def cube_directions(size: int) -> np.ndarray:
-    """(6, S, S, 3) float64 unit world direction of every cube texel centre."""
-    r, c = np.mgrid[0:size, 0:size]
-    return np.stack([texel_direction(f, r, c, size) for f in range(6)])
+from probeless.geom.cube import cube_solid_angles, texel_direction
 
 
 def _check_bands(bands: int) -> None:

@@ -9,21 +9,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from probeless.color import from_srgb8
 from probeless.errors import SchemaError
 from probeless.ibl.render import RenderResult
-from probeless.scene.build import srgb_to_linear
 from probeless.scene.rig import expose
-
-_DECODE = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
-
-
-def decode_srgb8(rgb: np.ndarray) -> np.ndarray:
-    """uint8 sRGB-encoded camera pixels to linear float32 0..1."""
-    return _DECODE[rgb]
 
 
 def encode_srgb8(linear: np.ndarray) -> np.ndarray:
-    """Linear camera values to uint8 sRGB (clipped to 0..1), the way the camera encodes."""
+    """Linear camera values to uint8 sRGB (clipped to 0..1), the way the camera encodes: through the
+    synthetic rig's table (:func:`probeless.scene.rig.expose`), which may differ from
+    :func:`probeless.color.to_srgb8` by one code."""
     return expose(np.asarray(linear, np.float32), 1.0)
 
 
@@ -45,7 +40,7 @@ def composite(rgb: np.ndarray, render: RenderResult, real_depth: np.ndarray | No
     out = rgb.copy()
     shaded = np.any(render.shadow < 1.0, axis=2) & ~render.mask
     if shaded.any():
-        out[shaded] = encode_srgb8(decode_srgb8(rgb[shaded]) * render.shadow[shaded])
+        out[shaded] = encode_srgb8(from_srgb8(rgb[shaded]) * render.shadow[shaded])
     if mask.any():
         out[mask] = encode_srgb8(render.color[mask])
     return out

@@ -15,7 +15,7 @@ import numpy as np
 from probeless.envmap.sh import project_cubemap
 from probeless.errors import SchemaError
 from probeless.messages.lighting import Cubemap, SHCoefficients
-from probeless.scene.build import srgb_to_linear
+from probeless.color import srgb_to_linear
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -54,3 +54,15 @@ def object_from_dict(spec: Mapping[str, Any], where: str = "objects[0]") -> IblO
                      contact_shadow=bool(spec.get("contact_shadow", True)),
                      floor_z=None if floor_z is None else float(floor_z),
                      shadow_extent=float(spec.get("shadow_extent", 4.0)), prt_dirs=int(spec.get("prt_dirs", 512)))
+
+
+def objects_problem(specs, resolve: Callable[[Mapping[str, Any]], Mapping[str, Any]] | None = None) -> str | None:
+    """The compositor nodes' ``objects`` param rule (a param check): every spec builds (see
+    :func:`object_from_dict`; ``resolve`` maps a spec first, as the node does) and the ids are unique."""
+    try:
+        ids = [object_from_dict(resolve(s) if resolve else s, f"objects[{i}]").id for i, s in enumerate(specs)]
+    except SceneError as exc:
+        return str(exc)
+    if len(set(ids)) != len(ids):
+        return f"object ids must be unique, got {ids}"
+    return None

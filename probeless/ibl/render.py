@@ -17,19 +17,14 @@ import moderngl
 import numpy as np
 
 from probeless.envmap.sh import cosine_lobe
+from probeless.geom.projection import clip_from_camera
+from probeless.gl.context import GL_TEXTURE_CUBE_MAP_SEAMLESS, create_context, current_context
+from probeless.gl.programs import load_program, mat_bytes, set_uniforms
+from probeless.gl.textures import upload_cube
 from probeless.ibl import prt
 from probeless.ibl.lighting import Lighting, glossy_faces
 from probeless.ibl.materials import shading
 from probeless.ibl.mesh_io import PlacedMesh
-from probeless.scene.gl import (
-    GL_TEXTURE_CUBE_MAP_SEAMLESS,
-    clip_from_camera,
-    create_context,
-    current_context,
-    load_program,
-    mat_bytes,
-    set_uniforms,
-)
 
 SHADERS = Path(__file__).with_name("shaders")
 
@@ -56,15 +51,6 @@ class RenderResult:
     depth: np.ndarray    # (H, W) float32 camera z of the object [m]; inf where mask is False
     shadow: np.ndarray   # (H, W, 3) float32 factor for the real image (1 = unchanged; contact shadows < 1)
     missing: tuple[str, ...] = ()  # objects not drawn because they have no lighting yet
-
-
-def _cube(ctx: moderngl.Context, faces: np.ndarray) -> moderngl.TextureCube:
-    """A trilinear, mipmapped RGB32F cube texture of (6, S, S, 3) faces uploaded unchanged."""
-    size = faces.shape[1]
-    tex = ctx.texture_cube((size, size), 3, np.ascontiguousarray(faces, np.float32).tobytes(), dtype="f4")
-    tex.build_mipmaps()
-    tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-    return tex
 
 
 class _Gpu:
@@ -100,9 +86,9 @@ class _Gpu:
     def set_lighting(self, ctx, lighting: Lighting) -> None:
         """Upload the environment and evaluate the per-vertex PRT radiance and floor shadow ratio."""
         self.release_textures()
-        self.env = _cube(ctx, lighting.faces)
+        self.env = upload_cube(ctx, np.asarray(lighting.faces, np.float32))
         pre = glossy_faces(lighting, self.shade.roughness)
-        self.glossy = _cube(ctx, pre) if pre is not None else None
+        self.glossy = upload_cube(ctx, np.asarray(pre, np.float32)) if pre is not None else None
         self.glossy_lod = 0.0 if pre is not None else self.shade.roughness * np.log2(lighting.faces.shape[1])
         sh = lighting.sh[:25]
         per_row = np.repeat(cosine_lobe(5), [2 * b + 1 for b in range(5)])

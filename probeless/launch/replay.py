@@ -18,6 +18,17 @@ PLAYER_ID = "bag_player"
 RECORDER_ID = "bag_recorder"
 
 
+def parse_remaps(remaps: tuple[str, ...]) -> dict[str, str]:
+    """``("a:=b", ...)`` -> ``{"a": "b"}``; ValueError on a malformed item."""
+    out = {}
+    for item in remaps:
+        src, sep, dst = item.partition(":=")
+        if not sep or not src or not dst:
+            raise ValueError(f"remap {item!r} is not of the form from:=to")
+        out[src] = dst
+    return out
+
+
 def node_topics(graph: Graph, decl: NodeDecl, diagnostics: bool = False) -> dict[str, str]:
     """output -> topic of a validated node (the outputs its launch plan will carry)."""
     cls = graph.node_classes[decl.id]

@@ -18,6 +18,7 @@ from contextlib import nullcontext
 
 import numpy as np
 
+from probeless.color import to_srgb8
 from probeless.errors import ProbelessError
 from probeless.pano.view import side_by_side, stereo_eye_poses
 
@@ -31,11 +32,11 @@ DISPLAY_FOR_OPERATOR = {"paper": "direct", "ldr": "direct", "landis": "gamma", "
 
 def encode_display(linear: np.ndarray, display: str = "direct", gamma: float = 2.2) -> np.ndarray:
     """uint8 display codes of linear values (any shape): clip to 0..1, encode per ``display``, round."""
+    if display == "srgb":
+        return to_srgb8(np.asarray(linear, np.float32))
     x = np.clip(np.asarray(linear, np.float32), 0.0, 1.0)
     if display == "gamma":
         x = x ** np.float32(1.0 / gamma)
-    elif display == "srgb":
-        x = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** np.float32(1 / 2.4) - 0.055)
     elif display != "direct":
         raise ProbelessError(f"encode_display: unknown display {display!r}; choices: {', '.join(DISPLAY)}")
     return np.rint(x * 255.0).astype(np.uint8)

@@ -19,25 +19,15 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from probeless.errors import DatasetError
 from probeless.pano.diffuse import (IN_SIZES, MAX_WEIGHTS, bruteforce_inputs, bruteforce_texels, diffuse_map,
                                     sh9_irradiance_map)
 from probeless.pano.equirect import check_equirect, pixel_directions, solid_angles
-from probeless.pano.sources import read_panorama
+from probeless.pano.sources import default_panoramas, read_panorama
 from probeless.progress import progress
 
-HDRI_DIR = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "hdri"
 SIZES = ((32, 16), (64, 32), (128, 64))
 GPU_METHODS = {"gpu": "subtexel", "gpu_moments": "moments"}  # result key -> GpuDiffuse weights
 METHODS = ("gpu", "gpu_moments", "matmul", "sh9")
-
-
-def default_panoramas() -> list[Path]:
-    """The ``*.hdr`` files of ../shared/data/hdri (relative to the repository root), sorted."""
-    paths = sorted(HDRI_DIR.resolve().glob("*.hdr")) if HDRI_DIR.is_dir() else []
-    if not paths:
-        raise DatasetError(f"no .hdr panoramas in {HDRI_DIR.resolve()}; pass panoramas explicitly")
-    return paths
 
 
 def exact_diffuse(hdr: np.ndarray, out_size: tuple[int, int], batch: int = 16) -> np.ndarray:
@@ -127,7 +117,7 @@ def evaluate_diffuse(panoramas: Sequence[str | Path] | None = None, sizes: Seque
     ``gpu_moments``: radiance moments), matmul and SH9 against the exact full-resolution map, and
     timings (see the module docstring); ``summary`` has the worst max and the mean mean error."""
     from probeless.pano.gpu_diffuse import GpuDiffuse
-    from probeless.scene.gl import create_context
+    from probeless.gl.context import create_context
 
     paths = [Path(p) for p in (panoramas or default_panoramas())]
     ctx = create_context()
@@ -163,6 +153,3 @@ def summarize(per_pano: dict[str, dict], sizes: Sequence[tuple[int, int]]) -> di
             entry[key] = float(np.median([r[key] for r in rows]))
         out[f"{w}x{h}"] = entry
     return out
-
-
-from probeless.pano.diffuse_report import add_parser, diffuse_figure  # noqa: E402,F401  (CLI and figure)

@@ -1,16 +1,19 @@
-"""``probeless pano diffuse``: the diffuse map accuracy table (JSON or text) and its picture rows."""
+"""The diffuse map accuracy table and its picture rows (``probeless eval diffuse``, :mod:`probeless.eval.diffuse`).
+
+Uses :mod:`probeless.pano.diffuse_eval` (the exact reference, the method names); that module does not
+import this one.
+"""
 
 from __future__ import annotations
 
-import argparse
-import json
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
+from probeless.pano.diffuse_eval import METHODS, exact_diffuse
 from probeless.pano.sources import read_panorama
-from probeless.scene.rig import linear_to_srgb
+from probeless.color import linear_to_srgb
 
 
 def tonemap(x: np.ndarray, exposure: float) -> np.ndarray:
@@ -31,7 +34,6 @@ def diffuse_figure(hdr: Any, out_png: str | Path, out_size: tuple[int, int] = (3
     import matplotlib.pyplot as plt
 
     from probeless.pano.diffuse import sh9_irradiance_map
-    from probeless.pano.diffuse_eval import exact_diffuse
     from probeless.pano.gpu_diffuse import GpuDiffuse
 
     items = list(hdr) if isinstance(hdr, (list, tuple)) else [hdr]
@@ -65,47 +67,9 @@ def diffuse_figure(hdr: Any, out_png: str | Path, out_size: tuple[int, int] = (3
     return out
 
 
-def add_parser(pano_subparsers: Any) -> argparse.ArgumentParser:
-    """Add ``diffuse`` to the ``probeless pano`` subcommands."""
-    p = pano_subparsers.add_parser("diffuse", help="diffuse map (GPU, matmul, SH9) vs the exact convolution of "
-                                                   "the full-resolution frame: errors and timings")
-    p.add_argument("--panorama", action="append", metavar="HDR", help="HDR panorama (repeatable); default: "
-                                                                      "../shared/data/hdri/*.hdr")
-    p.add_argument("--sizes", default="32x16,64x32,128x64", help="diffuse map sizes WxH, comma-separated")
-    p.add_argument("--in-size", default="128x64", help="GPU input (area-averaged) size WxH (default 128x64)")
-    p.add_argument("--figure", metavar="OUT.png", help="write a picture row per panorama (at the first size)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_diffuse)
-    return p
-
-
-def _sizes(text: str) -> list[tuple[int, int]]:
-    from probeless.errors import ProbelessError
-
-    try:
-        return [tuple(int(v) for v in s.lower().split("x")) for s in text.split(",")]  # type: ignore[misc]
-    except ValueError:
-        raise ProbelessError(f"sizes must look like 32x16,64x32, got {text!r}") from None
-
-
-def cmd_diffuse(ns: argparse.Namespace) -> int:
-    from probeless.pano.diffuse_eval import default_panoramas, evaluate_diffuse
-
-    sizes = _sizes(ns.sizes)
-    panoramas = ns.panorama or default_panoramas()
-    result = evaluate_diffuse(panoramas, sizes, gpu_in_size=_sizes(ns.in_size)[0], show_progress=not ns.no_progress)
-    if ns.figure:
-        result["figure"] = str(diffuse_figure(panoramas, ns.figure, sizes[0], _sizes(ns.in_size)[0]))
-    print(json.dumps(result) if ns.json else format_table(result["summary"], sizes))
-    return 0
-
-
 def format_table(summary: dict[str, dict[str, float]], sizes: Sequence[tuple[int, int]]) -> str:
     """A text table of :func:`~probeless.pano.diffuse_eval.summarize`'s output: per size and method the
     worst max / average mean relative error, and the median time [ms] (paper brute force: [s])."""
-    from probeless.pano.diffuse_eval import METHODS
-
     lines = [f"{'size':<8}" + "".join(f"{m + ' max / mean':>25}" for m in METHODS)
              + "".join(f"{m + ' ms':>15}" for m in METHODS[:-1]) + f"{'paper brute s':>15}"]
     for w, h in sizes:

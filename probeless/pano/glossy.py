@@ -7,7 +7,7 @@ samples it with a fixed pattern: six samples per ring, three rings inside the lo
 the weight is 0.5) and three outside, each sample looked up trilinearly at the mip level whose
 texel spacing matches the distance between neighbouring samples of its ring, Phong-weighted.
 
-Choices made here; errors below are ``probeless pano glossy`` means over the four HDRIs of
+Choices made here; errors below are ``probeless eval glossy`` means over the four HDRIs of
 ``../shared/data/hdri`` at roughness 0.01 / 0.05 / 0.1 / 0.2 / 0.5, in % of the mean radiance:
 
 * roughness -> exponent: ``n = 2 / r^2 - 2``, the Blinn-Phong exponent with the same lobe width

@@ -13,35 +13,21 @@ mip chain excluded (the paper builds it for the diffuse map anyway); ``glossy_sp
 
 from __future__ import annotations
 
-import glob
-import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from probeless.errors import ProbelessError
 from probeless.pano import glossy
 from probeless.pano.glossy_figure import LUMA, ROUGHNESS, glossy_figure
 from probeless.pano.glossy_report import format_table
-from probeless.tools.bench_common import rounded
 from probeless.pano.rings import lobe_half_angle, phong_exponent, ring_pattern
-from probeless.pano.sources import read_panorama
+from probeless.pano.sources import default_panoramas, read_panorama
 from probeless.progress import progress
 
-__all__ = ["add_parser", "evaluate_glossy", "format_table", "glossy_figure", "rel_errors"]
-REPO = Path(__file__).resolve().parents[2]
-DEFAULT_GLOB = "../shared/data/hdri/*.hdr"
-
-
-def default_panoramas() -> list[str]:
-    """The HDR panoramas of ``../shared/data/hdri`` (relative to the repository root), sorted."""
-    paths = sorted(glob.glob(str(REPO / DEFAULT_GLOB)))
-    if not paths:
-        raise ProbelessError(f"glossy eval: no panorama matches {REPO / DEFAULT_GLOB}; pass --panorama FILE")
-    return paths
+__all__ = ["evaluate_glossy", "format_table", "glossy_figure", "rel_errors"]  # command line: probeless.eval.glossy
+DEFAULT_GLOB = "../shared/data/hdri/*.hdr"  # what :func:`default_panoramas` reads, for help texts
 
 
 def random_directions(n: int, seed: int = 0) -> np.ndarray:
@@ -129,32 +115,3 @@ def _summary(per_pano: dict[str, Any], rough: list[float]) -> dict[str, Any]:
                              "max": float(np.max([x[k]["max"] for x in rows]))} for k in keys}
         out[f"{r:g}"]["glossy_speedup"] = float(np.median([x["glossy_speedup"] for x in rows]))
     return out
-
-
-def add_parser(pano_subparsers: Any) -> None:
-    """Add ``probeless pano glossy [--json] [--figure OUT.png] [--panorama FILE ...]``."""
-    p = pano_subparsers.add_parser("glossy", help="glossy ring sampling vs a Monte Carlo Phong-lobe integral")
-    p.add_argument("--panorama", nargs="+", action="extend", metavar="FILE",
-                   help=f"HDR panoramas (default: {DEFAULT_GLOB} relative to the repository)")
-    p.add_argument("--figure", metavar="OUT.png", help="write the Figure 6 row (ring over MC) of the first panorama")
-    p.add_argument("--figure-size", type=int, default=128, help="sphere size in the figure [px] (default 128)")
-    p.add_argument("--figure-mc-samples", type=int, default=512, help="MC samples per figure pixel (default 512)")
-    p.add_argument("--dirs", type=int, default=128, help="random reflection directions (default 128)")
-    p.add_argument("--mc-samples", type=int, default=8192, help="Monte Carlo samples per direction (default 8192)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the directions and the first MC estimate")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_glossy)
-
-
-def cmd_glossy(ns: Any) -> int:
-    """Run :func:`evaluate_glossy` (and :func:`glossy_figure`), print the table or one JSON object."""
-    res = evaluate_glossy(ns.panorama, n_dirs=ns.dirs, mc_samples=ns.mc_samples, seed=ns.seed,
-                          show_progress=not ns.no_progress)
-    if ns.figure:
-        glossy_figure((ns.panorama or default_panoramas())[0], ns.figure, size=ns.figure_size,
-                      mc_samples=ns.figure_mc_samples, seed=ns.seed)
-        res["figure"] = ns.figure
-        print(f"wrote {ns.figure}", file=sys.stderr)
-    print(json.dumps(rounded(res, 6)) if ns.json else format_table(res))
-    return 0

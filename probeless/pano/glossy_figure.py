@@ -12,6 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from probeless.color import to_srgb8
 from probeless.errors import ProbelessError
 from probeless.pano import glossy
 from probeless.pano.sources import read_panorama
@@ -25,9 +26,7 @@ LABEL_H = 20
 def tone_map(rgb: np.ndarray, exposure: float) -> np.ndarray:
     """uint8 sRGB of linear ``rgb`` times ``exposure``, Reinhard-compressed per channel."""
     x = np.maximum(np.asarray(rgb, np.float64) * exposure, 0.0)
-    x = x / (1.0 + x)
-    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return np.clip(np.round(srgb * 255.0), 0, 255).astype(np.uint8)
+    return to_srgb8(x / (1.0 + x))
 
 
 def glossy_spheres(hdr: np.ndarray, roughness=ROUGHNESS, size: int = 128, mc_samples: int = 512, seed: int = 0,

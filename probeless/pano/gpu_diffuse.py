@@ -20,9 +20,10 @@ import moderngl
 import numpy as np
 
 from probeless.errors import ProbelessError
+from probeless.gl.context import current_context
+from probeless.gl.textures import upload_texture
 from probeless.pano.equirect import check_equirect, pixel_directions
-from probeless.pano.gpu_pass import GpuPasses, gl_dtype, upload
-from probeless.scene.gl import current_context
+from probeless.pano.gpu_pass import GpuPasses
 
 WEIGHTS = ("subtexel", "paper", "moments")
 NORMALIZE = ("weights", "pi")
@@ -69,8 +70,8 @@ class GpuDiffuse(GpuPasses):
         self.defines = dict(SUB=int(sub), PAPER_WEIGHTS=int(weights == "paper"), MOMENTS=int(weights == "moments"),
                             BY_WEIGHTS=int(normalize == "weights"))
         mom, centre = texel_geometry(*self.in_size)
-        self.moment, self.centre = upload(self.ctx, mom), upload(self.ctx, centre)
-        self.normals = upload(self.ctx, pixel_directions(*self.out_size).astype(np.float32))
+        self.moment, self.centre = upload_texture(self.ctx, mom), upload_texture(self.ctx, centre)
+        self.normals = upload_texture(self.ctx, pixel_directions(*self.out_size).astype(np.float32))
         self.program("diffuse", **self.defines)  # compile now: fail early, not on the first frame
         self._frame: moderngl.Texture | None = None
 
@@ -79,13 +80,7 @@ class GpuDiffuse(GpuPasses):
         if img.dtype.kind != "f" or img.shape[2] != 3:
             raise ProbelessError(f"GpuDiffuse: expected a float RGB image, got {img.dtype} with {img.shape[2]} "
                                  f"channel(s)")
-        size = (img.shape[1], img.shape[0])
-        if self._frame is None or self._frame.size != size or self._frame.dtype != gl_dtype(img):
-            if self._frame is not None:
-                self._frame.release()
-            self._frame = upload(self.ctx, img)
-        else:
-            self._frame.write(np.ascontiguousarray(img).tobytes())
+        self._frame = upload_texture(self.ctx, img, self._frame)
         return self._frame
 
     def _reduced(self, frame: moderngl.Texture, size: tuple[int, int]) -> moderngl.Texture:

@@ -14,8 +14,9 @@ import moderngl
 import numpy as np
 
 from probeless.errors import ProbelessError
-from probeless.pano.gpu_pass import GpuPasses, upload
-from probeless.scene.gl import current_context
+from probeless.gl.context import current_context
+from probeless.gl.textures import upload_texture
+from probeless.pano.gpu_pass import GpuPasses
 
 GPU_OPERATORS = {"paper": 0, "landis": 1, "none": 2, "ldr": 3}
 
@@ -45,13 +46,7 @@ class GpuItmo(GpuPasses):
         a = np.asarray(rgb8)
         if a.dtype != np.uint8 or a.ndim != 3 or a.shape[2] != 3:
             raise ProbelessError(f"GpuItmo: expected an (H, W, 3) uint8 frame, got {a.dtype} {a.shape}")
-        size = (a.shape[1], a.shape[0])
-        if self._frame is None or self._frame.size != size:
-            if self._frame is not None:
-                self._frame.release()
-            self._frame = upload(self.ctx, a)
-        else:
-            self._frame.write(np.ascontiguousarray(a).tobytes())
+        self._frame = upload_texture(self.ctx, a, self._frame)
         return self._frame
 
     @current_context

@@ -1,8 +1,9 @@
 """Shared GL plumbing of the panorama GPU passes: one context, full-screen fragment passes, read-back.
 
 Every pass draws one triangle over a float32 RGBA target and reads it back; fragment shaders
-address texels with ``gl_FragCoord``. Texture row 0 is image row 0 and framebuffer row 0 is the
-first row read back, so arrays go up and come down without flips.
+address texels with ``gl_FragCoord`` (the shared ``fullscreen`` vertex shader of :mod:`probeless.gl`).
+Inputs go up with :func:`probeless.gl.textures.upload_texture`: texture row 0 is image row 0 and
+framebuffer row 0 is the first row read back, so arrays go up and come down without flips.
 """
 
 from __future__ import annotations
@@ -13,27 +14,10 @@ import moderngl
 import numpy as np
 
 from probeless.errors import ProbelessError
-from probeless.scene.gl import create_context, current_context, load_program, set_uniforms
+from probeless.gl.context import create_context, current_context
+from probeless.gl.programs import load_program, set_uniforms
 
 SHADERS = Path(__file__).with_name("shaders")
-
-
-def gl_dtype(image: np.ndarray) -> str:
-    """moderngl texture dtype of an array: uint8 -> f1 (normalised), float16 -> f2, else f4."""
-    return {np.dtype(np.uint8): "f1", np.dtype(np.float16): "f2"}.get(np.asarray(image).dtype, "f4")
-
-
-def upload(ctx: moderngl.Context, image: np.ndarray) -> moderngl.Texture:
-    """An (H, W, C) uint8 (normalised 0..1 in GLSL), float16 or float image as a nearest-filtered texture."""
-    a = np.ascontiguousarray(image)
-    if a.ndim != 3 or a.shape[2] not in (1, 2, 3, 4):
-        raise ProbelessError(f"gpu upload: expected an (H, W, C<=4) image, got shape {a.shape}")
-    dtype = gl_dtype(a)
-    data = a if dtype != "f4" else a.astype(np.float32, copy=False)
-    tex = ctx.texture((a.shape[1], a.shape[0]), a.shape[2], data.tobytes(), dtype=dtype)
-    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    tex.repeat_x = tex.repeat_y = False
-    return tex
 
 
 class GpuPasses:

@@ -1,25 +1,22 @@
-"""``probeless pano itmo``: paper 002's Figure 7 made quantitative (LDR vs inverse tone mapped vs true HDR).
+"""Paper 002's Figure 7 made quantitative (LDR vs inverse tone mapped vs true HDR): ``probeless eval itmo``.
 
 Per true-HDR panorama: simulate an auto-exposed 8-bit camera, make the lighting maps of
 :mod:`probeless.pano.itmo_maps` from its picture, light diffuse, glossy (roughness 0.1) and mirror
 spheres with each, and compare with the spheres lit by the true HDR map in the same camera units
-(:mod:`probeless.pano.itmo_metrics`). :func:`itmo_figure` draws the spheres as a picture grid.
+(:mod:`probeless.pano.itmo_metrics`). :func:`itmo_figure` draws the spheres as a picture grid. The
+command line and its tables are :mod:`probeless.eval.itmo`.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
-import math
-from typing import Any
-
 import cv2
 import numpy as np
 
-from probeless.pano.itmo_maps import (EXPOSURE_PERCENTILE, EXPOSURE_TARGET, MAPS, Lighting, SphereSetup,
-                                      camera_exposure, default_panoramas, ldr_stats, lighting_maps, load_case,
-                                      make_ldr, render_spheres)
+from probeless.pano.itmo_maps import (EXPOSURE_PERCENTILE, EXPOSURE_TARGET, MAPS, SphereLighting, SphereSetup,
+                                      camera_exposure, ldr_stats, lighting_maps, load_case, make_ldr,
+                                      render_spheres)
 from probeless.pano.itmo_metrics import display, image_errors, mean_errors, winners
+from probeless.pano.sources import default_panoramas
 from probeless.pano.spheres import OBJECTS, sphere_view
 from probeless.progress import progress
 
@@ -34,11 +31,11 @@ def evaluate_panorama(name: str, hdr: np.ndarray, setup: SphereSetup = SphereSet
     """(result, figure block or None) for one panorama; ``tick`` is called once per lighting map."""
     exposure = camera_exposure(hdr, percentile, target)
     maps = lighting_maps(hdr, exposure)
-    ref_lit = Lighting.of(maps["hdr"], setup.diffuse_size)
+    ref_lit = SphereLighting.of(maps["hdr"], setup.diffuse_size)
     ref = render_spheres(ref_lit, setup)
     errors, rows = {}, {}
     for m in MAPS:
-        lit = ref_lit if m == "hdr" else Lighting.of(maps[m], setup.diffuse_size)
+        lit = ref_lit if m == "hdr" else SphereLighting.of(maps[m], setup.diffuse_size)
         if m != "hdr":
             est = render_spheres(lit, setup)
             errors[m] = {o: image_errors(est[o], ref[o]) for o in OBJECTS}
@@ -121,68 +118,3 @@ def _write_grid(path: str, blocks: list[np.ndarray]) -> None:
     grid = np.hstack([p for b in blocks for p in (b, gap)][:-1])
     if not cv2.imwrite(path, cv2.cvtColor(grid, cv2.COLOR_RGB2BGR)):
         raise OSError(f"{path}: cannot write the PNG")
-
-
-def _finite(obj: Any) -> Any:
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_finite(v) for v in obj]
-    return obj
-
-
-def print_table(result: dict) -> None:
-    """The per-panorama tables and the winners, readable."""
-    cols = [(o, k) for o in OBJECTS for k in ("rel_rmse", "rel_rmse_scaled", "psnr")]
-    for r in result["panoramas"] + [result["overall"]]:
-        if "exposure" in r:
-            print(f"\n{r['name']}: exposure {r['exposure']:.4g}, camera clips {r['clipped_fraction']:.1%} of the "
-                  f"sphere, LDR keeps {r['ldr_energy_fraction']:.1%} of the light")
-        else:
-            print(f"\n{r['name']}")
-        print(f"  {'map':13s} " + " ".join(f"{o[:4] + ' ' + _SHORT[k]:>10s}" for o, k in cols))
-        for m, objs in r["errors"].items():
-            print(f"  {m:13s} " + " ".join(f"{objs[o][k]:10.3f}" for o, k in cols))
-        for o, per in r["winners"].items():
-            cells = []
-            for k, w in per.items():
-                unit = "x" if k.startswith("rel") else " dB"
-                cells.append(f"{_SHORT[k]} {w['best']} ({w['margin_over_runner_up']:.2f}{unit} over "
-                             f"{w['runner_up']}, {w['margin_over_ldr']:.2f}{unit} over ldr)")
-            print(f"  best {o:8s}: " + "; ".join(cells))
-    print("\n(rel = relative RMSE in linear camera units; rel* = after the least-squares scale; "
-          "psnr = PSNR after clip + sRGB [dB])")
-
-
-_SHORT = {"rel_rmse": "rel", "rel_rmse_scaled": "rel*", "psnr": "psnr"}
-
-
-def add_parser(pano_subparsers: Any) -> argparse.ArgumentParser:
-    """Add ``itmo`` to the ``probeless pano`` subcommands."""
-    p = pano_subparsers.add_parser("itmo", help="Figure 7 quantified: spheres lit by LDR, inverse tone mapped LDR "
-                                                "and true HDR maps, image errors against true HDR")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--figure", metavar="OUT.png", help="write the sphere grid")
-    p.add_argument("--panorama", nargs="+", metavar="FILE", help="true-HDR panoramas (default ../shared/data/hdri)")
-    p.add_argument("--exposure-percentile", type=float, default=EXPOSURE_PERCENTILE,
-                   help=f"camera metering: this solid-angle weighted luminance quantile ... (default {EXPOSURE_PERCENTILE})")
-    p.add_argument("--exposure-target", type=float, default=EXPOSURE_TARGET,
-                   help=f"... is exposed to this linear value (default {EXPOSURE_TARGET})")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_itmo)
-    return p
-
-
-def cmd_itmo(ns: argparse.Namespace) -> int:
-    """Run the evaluation for the parsed ``ns``; JSON or tables on stdout."""
-    result = evaluate(ns.panorama, figure=ns.figure, show_progress=not ns.no_progress,
-                      percentile=ns.exposure_percentile, target=ns.exposure_target)
-    if ns.json:
-        print(json.dumps(_finite(result)))
-    else:
-        print_table(result)
-        if ns.figure:
-            print(f"\nwrote {ns.figure}")
-    return 0

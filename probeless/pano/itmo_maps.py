@@ -14,15 +14,13 @@ lighting maps (:func:`lighting_maps`), all in the same camera units:
 * ``hdr``: the true panorama times the exposure (the reference).
 
 Every map lights a diffuse, a glossy and a mirror sphere (:mod:`probeless.pano.spheres`) seen from
-four horizontal directions (:class:`Lighting`, :func:`render_spheres`); the errors are in :mod:`itmo_metrics`.
+four horizontal directions (:class:`SphereLighting`, :func:`render_spheres`); the errors are in :mod:`itmo_metrics`.
 """
 
 from __future__ import annotations
 
-import glob
 import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -31,25 +29,17 @@ from probeless.pano import glossy
 from probeless.pano.diffuse import diffuse_map
 from probeless.pano.equirect import check_equirect, solid_angles
 from probeless.pano.itmo import apply_itmo, gamma_decode, paper_itmo
-from probeless.pano.sources import read_panorama, srgb_to_linear
+from probeless.color import from_srgb8
+from probeless.pano.sources import read_panorama
 from probeless.pano.spheres import OBJECTS, shade, sphere_view
 from probeless.scene.rig import expose
 
-HDRI_DIR = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "hdri"
 MAPS = ("ldr", "paper", "paper_linear", "landis", "akyuz", "banterle", "hdr")
 EXPOSURE_PERCENTILE, EXPOSURE_TARGET = 0.9, 0.5
 VIEWS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, -1.0, 0.0))
 DIFFUSE_SIZE = (32, 16)
 ROUGHNESS = 0.1
 _REC709 = np.array([0.2126, 0.7152, 0.0722])
-
-
-def default_panoramas() -> list[str]:
-    """The shipped true-HDR panoramas (``../shared/data/hdri/*.hdr``), sorted; DatasetError if none."""
-    paths = sorted(glob.glob(str(HDRI_DIR / "*.hdr")))
-    if not paths:
-        raise DatasetError(f"{HDRI_DIR}: no .hdr panoramas found; pass --panorama FILE")
-    return paths
 
 
 def weighted_percentile(values: np.ndarray, q: float) -> float:
@@ -80,7 +70,7 @@ def lighting_maps(hdr: np.ndarray, exposure: float) -> dict[str, np.ndarray]:
     ldr8 = make_ldr(hdr, exposure)
     display = ldr8.astype(np.float32) / 255.0
     decoded = gamma_decode(display)
-    maps = {"ldr": srgb_to_linear(ldr8), "paper": paper_itmo(display), "paper_linear": paper_itmo(decoded)}
+    maps = {"ldr": from_srgb8(ldr8), "paper": paper_itmo(display), "paper_linear": paper_itmo(decoded)}
     for name in ("landis", "akyuz", "banterle"):
         maps[name] = apply_itmo(name, decoded)
     maps["hdr"] = (np.asarray(hdr, np.float32) * np.float32(exposure)).astype(np.float32)
@@ -110,7 +100,7 @@ class SphereSetup:
 
 
 @dataclass(frozen=True)
-class Lighting:
+class SphereLighting:
     """A lighting map with what the spheres sample: its mip chain and its diffuse map."""
 
     env: np.ndarray
@@ -118,12 +108,12 @@ class Lighting:
     diffuse: np.ndarray
 
     @classmethod
-    def of(cls, env: np.ndarray, diffuse_size: tuple = DIFFUSE_SIZE) -> "Lighting":
+    def of(cls, env: np.ndarray, diffuse_size: tuple = DIFFUSE_SIZE) -> "SphereLighting":
         """Mip chain (:func:`glossy.mip_levels`) and diffuse map (:func:`diffuse_map`) of ``env``."""
         return cls(env, glossy.mip_levels(env), diffuse_map(env, diffuse_size))
 
 
-def render_spheres(lit: Lighting, setup: SphereSetup = SphereSetup(), views: tuple | None = None,
+def render_spheres(lit: SphereLighting, setup: SphereSetup = SphereSetup(), views: tuple | None = None,
                    size: int | None = None) -> dict[str, np.ndarray]:
     """Per object of :data:`OBJECTS`, the (N, 3) radiance of the sphere pixels of every view (default
     ``setup.views`` at ``setup.size``), the views one after the other, lit by ``lit``."""

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from probeless.scene.rig import linear_to_srgb
+from probeless.color import linear_to_srgb
 
 METRICS = {"rel_rmse": "min", "rel_rmse_scaled": "min", "psnr": "max"}  # metric -> which is better
 

@@ -20,7 +20,10 @@ from probeless.ibl.materials import shading
 from probeless.pano import glossy
 from probeless.pano.equirect import check_equirect
 from probeless.pano.view import intrinsics
-from probeless.scene.gl import clip_from_camera, create_context, current_context, load_program, mat_bytes, set_uniforms
+from probeless.geom.projection import clip_from_camera
+from probeless.gl.context import create_context, current_context
+from probeless.gl.programs import load_program, mat_bytes, set_uniforms
+from probeless.gl.textures import upload_texture
 
 SHADERS = Path(__file__).with_name("shaders")
 
@@ -32,29 +35,10 @@ def _camera(K_or_fov, width: int, height: int) -> np.ndarray:
     return np.asarray(K_or_fov, np.float64)
 
 
-def _pixels(img: np.ndarray) -> tuple[bytes, str]:
-    """Texture bytes and moderngl dtype of an (H, W, 3) image: uint8 (normalised), float16 or float32."""
-    a = np.ascontiguousarray(img)
-    dtype = {"uint8": "f1", "float16": "f2"}.get(a.dtype.name, "f4")
-    return (a if dtype != "f4" else a.astype(np.float32, copy=False)).tobytes(), dtype
-
-
 def _upload(ctx: moderngl.Context, tex: moderngl.Texture | None, img: np.ndarray, mipmaps: bool) -> moderngl.Texture:
-    """``img`` in ``tex`` (rewritten when size and type match, else a new texture): row 0 = image row 0
-    (v = row / H), repeating in u, clamped in v, bilinear, trilinear over a full mip chain with ``mipmaps``."""
-    data, dtype = _pixels(img)
-    size = (img.shape[1], img.shape[0])
-    if tex is not None and tex.size == size and tex.dtype == dtype:
-        tex.write(data)
-    else:
-        if tex is not None:
-            tex.release()
-        tex = ctx.texture(size, 3, data, dtype=dtype)
-        tex.repeat_x, tex.repeat_y = True, False
-        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR if mipmaps else moderngl.LINEAR, moderngl.LINEAR)
-    if mipmaps:
-        tex.build_mipmaps()
-    return tex
+    """An equirect ``img`` in ``tex`` (rewritten when it matches): row 0 = image row 0 (v = row / H),
+    repeating in u, clamped in v, bilinear, trilinear over a full mip chain with ``mipmaps``."""
+    return upload_texture(ctx, img, tex, filter="trilinear" if mipmaps else "linear", repeat=(True, False))
 
 
 def _write_array(prog, name: str, values: np.ndarray, size: int) -> None:

@@ -78,7 +78,7 @@ def ring_pattern(roughness: float, height: int, per_ring: int = 6, rings_inside:
     ``log2(d height / pi) + lod_bias`` (texel spacing ``pi 2^lod / height`` equals ``d``), clamped
     to ``[0, floor(log2 height)]``. ``lod_bias=0`` is the paper's rule; a trilinear lookup blurs
     over about two texels, so ``lod_bias=-1`` (texel spacing d / 2) matches the measured lobe
-    integral better (docs: ``probeless pano glossy``).
+    integral better (docs: ``probeless eval glossy``).
     """
     n = phong_exponent(roughness)
     if int(height) < 1 or per_ring < 1 or rings_inside < 1 or rings_outside < 0:

@@ -1,7 +1,8 @@
 """Panorama readers: still equirectangular images (Radiance .hdr, EXR, PNG/JPG) and 360° video frames.
 
-Pure readers, no node: :func:`read_panorama` returns linear float32 RGB for HDR files and sRGB uint8
-for LDR ones; :class:`VideoFrames` decodes a video on a background thread into a small queue (the
+Pure readers, no node: :func:`default_panoramas` lists the shipped HDR panoramas (the default
+input of every panorama evaluation); :func:`read_panorama` returns linear float32 RGB for HDR files
+and sRGB uint8 for LDR ones; :class:`VideoFrames` decodes a video on a background thread into a small queue (the
 paper's separate loader thread), so the consumer never waits for the decoder unless it wants to.
 """
 
@@ -14,17 +15,22 @@ from typing import Iterator
 import cv2
 import numpy as np
 
+from probeless.color import from_srgb8
 from probeless.datasets.framethread import END, FrameThread
 from probeless.errors import DatasetError
+from probeless.paths import SHARED_DATA
 
 HDR_SUFFIXES = (".hdr", ".pic", ".exr")
+HDRI_DIR = SHARED_DATA / "hdri"  # the shipped true-HDR panoramas (../shared/data/hdri beside the checkout)
 LDR_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
-def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
-    """sRGB-encoded uint8 -> linear float32 in [0, 1] (the IEC 61966-2-1 transfer function)."""
-    c = rgb.astype(np.float32) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+def default_panoramas() -> list[str]:
+    """The ``*.hdr`` panoramas of :data:`HDRI_DIR`, sorted, as path strings; DatasetError if there are none."""
+    paths = sorted(str(p) for p in HDRI_DIR.resolve().glob("*.hdr")) if HDRI_DIR.is_dir() else []
+    if not paths:
+        raise DatasetError(f"{HDRI_DIR.resolve()}: no .hdr panoramas found; pass --panorama FILE")
+    return paths
 
 
 def equirect_ok(shape: tuple[int, ...], path: str = "") -> None:
@@ -56,7 +62,7 @@ def read_panorama(path: str, linear: bool = False) -> np.ndarray:
         return rgb
     if rgb.dtype != np.uint8:
         raise DatasetError(f"{path}: expected 8-bit pixels, got {rgb.dtype}")
-    return srgb_to_linear(rgb) if linear else rgb
+    return from_srgb8(rgb) if linear else rgb
 
 
 def _decode(path: str, fps: float, loop: bool) -> Iterator[tuple[int, tuple[float, np.ndarray]]]:

@@ -1,6 +1,6 @@
 """Perspective views of a 360° frame: pinhole intrinsics, head path, stereo eyes, the background view.
 
-Cameras follow OpenCV (x right, y down, z forward), as :func:`probeless.scene.gl.clip_from_camera`
+Cameras follow OpenCV (x right, y down, z forward), as :func:`probeless.geom.projection.clip_from_camera`
 and the object renderer do; a pose is ``world_from_camera`` (4x4, world z up, the equirect's frame:
 see :mod:`probeless.pano.equirect`). Pixel centres sit at integer coordinates.
 """

@@ -36,7 +36,7 @@ class NoParams:
     """Params of a node that takes none."""
 
 
-class Timer(Protocol):
+class TimerHandle(Protocol):
     def cancel(self) -> None: ...
 
 
@@ -49,7 +49,7 @@ class Context(Protocol):
     def publish(self, output: str, msg: Message) -> None:
         """Publish on one of the node's outputs; the runtime sets header.seq."""
 
-    def create_timer(self, period_s: float, callback: Callable[[], None], name: str | None = None) -> Timer:
+    def create_timer(self, period_s: float, callback: Callable[[], None], name: str | None = None) -> TimerHandle:
         """Call ``callback`` every ``period_s`` seconds on the node's thread (after the graph starts)."""
 
     def now_ns(self) -> int:

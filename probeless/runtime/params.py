@@ -7,31 +7,82 @@ Declare fields with :func:`param` to add a range, choices and a doc string::
         width: int = param(640, min=1, doc="image width [px]")
         mode: str = param("blur", choices=("blur", "edges"))
 
-Supported types: int, float (ints accepted), str, bool, ``X | None``, ``Literal[...]`` and
-``tuple[X, ...]`` (YAML lists, nested for matrices). An unknown key, a wrong type or a value out
-of range raises :class:`ParamError` naming the node id, the key and the YAML line.
+Supported types: int, float (ints accepted; floats must be finite), str, bool, ``X | None``,
+``Literal[...]`` and ``tuple[X, ...]`` (YAML lists, nested for matrices). An unknown key, a wrong
+type or a value out of range raises :class:`ParamError` naming the node id, the key and the YAML line.
+
+Beyond range and choices, :func:`param` declares what a node needs of a value, so ``probeless
+check`` reports it before anything starts (a node's ``setup()`` then only uses its params)::
+
+    size: tuple[int, ...] = param((128, 64), length=2, min=1)           # min/max apply to every number
+    pose: tuple[float, ...] = param((), length=(0, 7), finite=True)     # empty or 7 numbers
+    scene: str = param(path="file", must_exist=True)                   # relative to the working folder
+    calib: str = param("", path="file", must_exist=True)               # "" (the default) = not given
+    ids: tuple[str, ...] = param((), check=unique_ids)                 # check(value) -> error text | None
+    pos: tuple[tuple[float, ...], ...] = param((), check=lambda v, p: None if len(v) == len(p.ids)
+                                               else "one position per id")   # check(value, params)
+
+A ``check`` taking two arguments gets the whole params object (cross-parameter rules) and runs
+once every other check has passed.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
+import os
 import types
 import typing
-from typing import Any, Mapping
+from pathlib import Path
+from typing import Any, Callable, Mapping
 
 from probeless.errors import ParamError
 
 _MISSING = dataclasses.MISSING
 
 
+PATH_KINDS = ("file", "dir", "any")
+
+
 def param(default: Any = _MISSING, *, min: float | None = None, max: float | None = None,
-          choices: tuple | None = None, doc: str = "") -> Any:
-    """A parameter field with optional inclusive range, allowed choices and documentation."""
-    meta = {"min": min, "max": max, "choices": choices, "doc": doc}
+          choices: tuple | None = None, doc: str = "", length: int | tuple[int, ...] | None = None,
+          min_length: int | None = None, max_length: int | None = None, finite: bool = False,
+          path: str | None = None, must_exist: bool = False, resolve: Callable[[str], Any] | None = None,
+          check: Callable[..., str | None] | None = None) -> Any:
+    """A parameter field: default, documentation and what a valid value is, all checked at graph load.
+
+    ``min`` / ``max``: inclusive range of a number, or of every number in a list (nested too).
+    ``choices``: the allowed values. ``length``: the allowed length(s) of a list or string (an int or
+    a tuple of ints); ``min_length`` / ``max_length`` bound it. ``finite``: every number in the value
+    (nested lists and mappings too) is finite (float params always are). ``path``: the value is a
+    ``"file"``, ``"dir"`` or either (``"any"``); with ``must_exist`` it must exist, a relative path
+    resolved against the working folder, as nodes open it (an empty string is "not given" when the
+    default is empty); a node that looks elsewhere too passes the same ``resolve(value) -> path`` it
+    opens with. ``check``: ``check(value)`` or ``check(value, params)`` returns an error text or
+    None; it gets the converted value (tuples, floats) and runs after the other checks of the value.
+    """
     if isinstance(default, list):
         raise TypeError("use a tuple, not a list, as a parameter default")
+    if path is not None and path not in PATH_KINDS:
+        raise TypeError(f"param(path=...) must be one of {PATH_KINDS}, got {path!r}")
+    if must_exist and path is None:
+        raise TypeError("param(must_exist=True) needs path='file', 'dir' or 'any'")
+    lengths = (length,) if isinstance(length, int) else length
+    meta = {"min": min, "max": max, "choices": choices, "doc": doc, "length": lengths, "min_length": min_length,
+            "max_length": max_length, "finite": finite, "path": path, "must_exist": must_exist, "resolve": resolve,
+            "check": check, "check_params": check is not None and _takes_two_args(check)}
     return dataclasses.field(default=default, metadata=meta)
+
+
+def _takes_two_args(fn: Callable) -> bool:
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return False
+    positional = [p for p in sig.parameters.values()
+                  if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.default is p.empty]
+    return len(positional) >= 2 or any(p.kind is p.VAR_POSITIONAL for p in sig.parameters.values())
 
 
 def load_params(cls: type, values: Mapping[str, Any] | None, *, node_id: str, file: str | None = None,
@@ -71,9 +122,19 @@ def check_params(cls: type, values: Mapping[str, Any] | None, *, node_id: str, f
             if f.default is _MISSING and f.default_factory is _MISSING:
                 err(name, "required parameter is missing")
             continue
-        problem = _type_problem(hints[name], values[name]) or _range_problem(f.metadata, values[name])
+        problem = _type_problem(hints[name], values[name]) or _value_problem(f, _convert(hints[name], values[name]))
         if problem:
             err(name, problem)
+    if errors:
+        return errors
+    # cross-parameter checks: once every value is valid on its own, against the whole params object
+    checks = [f for f in fields.values() if f.metadata.get("check_params")]
+    if checks:
+        params = cls(**{k: _convert(hints[k], v) for k, v in values.items()})
+        for f in checks:
+            problem = f.metadata["check"](getattr(params, f.name), params)
+            if problem:
+                err(f.name, problem)
     return errors
 
 
@@ -92,10 +153,25 @@ def describe_type(hint: Any) -> str:
 def _type_problem(hint: Any, value: Any) -> str | None:
     if _matches(hint, value):
         return None
+    if _matches(hint, value, finite=False):  # right type but for a NaN or infinity
+        return f"{_finite_problem(value)} (expected {describe_type(hint)})"
     return f"expected {describe_type(hint)}, got {type(value).__name__} {value!r}"
 
 
-def _matches(hint: Any, value: Any) -> bool:
+def _first_non_finite(value: Any, where: str = "") -> tuple[str, Any] | None:
+    """(position like "[1][2]", number) of the first NaN or infinity in a value, or None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return where, value
+    items = value.items() if isinstance(value, Mapping) else enumerate(value) \
+        if isinstance(value, (list, tuple)) else ()
+    for k, v in items:
+        found = _first_non_finite(v, f"{where}[{k!r}]" if isinstance(value, Mapping) else f"{where}[{k}]")
+        if found:
+            return found
+    return None
+
+
+def _matches(hint: Any, value: Any, finite: bool = True) -> bool:
     origin = typing.get_origin(hint)
     if hint is Any:
         return True
@@ -104,12 +180,12 @@ def _matches(hint: Any, value: Any) -> bool:
     if origin is typing.Literal:
         return value in typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
-        return any(_matches(a, value) for a in typing.get_args(hint))
+        return any(_matches(a, value, finite) for a in typing.get_args(hint))
     if origin is tuple:
         item = typing.get_args(hint)[0]
-        return isinstance(value, (list, tuple)) and all(_matches(item, v) for v in value)
+        return isinstance(value, (list, tuple)) and all(_matches(item, v, finite) for v in value)
     if hint is float:
-        return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        return isinstance(value, (int, float)) and not isinstance(value, bool) and (math.isfinite(value) or not finite)
     if hint is int:
         return isinstance(value, int) and not isinstance(value, bool)
     if hint in (str, bool):
@@ -117,16 +193,92 @@ def _matches(hint: Any, value: Any) -> bool:
     return False
 
 
-def _range_problem(meta: Mapping[str, Any], value: Any) -> str | None:
-    lo, hi, choices = meta.get("min"), meta.get("max"), meta.get("choices")
+def _value_problem(f: dataclasses.Field, value: Any) -> str | None:
+    """What is wrong with a (type-checked, converted) value by the field's declaration, or None."""
+    meta = f.metadata
+    choices = meta.get("choices")
     if choices is not None and value not in choices:
         return f"{value!r} is not one of {list(choices)}"
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        if lo is not None and value < lo:
-            return f"{value} is below the minimum {lo}"
-        if hi is not None and value > hi:
-            return f"{value} is above the maximum {hi}"
+    problem = (_length_problem(meta, value) or _range_problem(meta, value)
+               or (_finite_problem(value) if meta.get("finite") else None) or _path_problem(f, value))
+    if problem:
+        return problem
+    check = meta.get("check")
+    if check is not None and not meta.get("check_params"):
+        return check(value)
     return None
+
+
+def _length_problem(meta: Mapping[str, Any], value: Any) -> str | None:
+    if not isinstance(value, (str, list, tuple)):
+        return None
+    n, what = len(value), "character(s)" if isinstance(value, str) else "value(s)"
+    lengths, lo, hi = meta.get("length"), meta.get("min_length"), meta.get("max_length")
+    if lengths is not None and n not in lengths:
+        return f"needs {' or '.join(map(str, lengths))} {what}, got {n}: {_show(value)}"
+    if lo is not None and n < lo:
+        return f"needs at least {lo} {what}, got {n}: {_show(value)}"
+    if hi is not None and n > hi:
+        return f"needs at most {hi} {what}, got {n}: {_show(value)}"
+    return None
+
+
+def _range_problem(meta: Mapping[str, Any], value: Any, where: str = "") -> str | None:
+    """min/max of a number, or of every number in a (nested) list."""
+    lo, hi = meta.get("min"), meta.get("max")
+    if lo is None and hi is None:
+        return None
+    if isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            problem = _range_problem(meta, v, f"{where}[{i}]")
+            if problem:
+                return problem
+        return None
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        at = f"item {where}: " if where else ""
+        if lo is not None and value < lo:
+            return f"{at}{value} is below the minimum {lo}"
+        if hi is not None and value > hi:
+            return f"{at}{value} is above the maximum {hi}"
+    return None
+
+
+def _finite_problem(value: Any) -> str | None:
+    found = _first_non_finite(value)
+    if found is None:
+        return None
+    where, bad = found
+    return f"{f'item {where}: ' if where else ''}{bad!r} is not finite"
+
+
+def _path_problem(f: dataclasses.Field, value: Any) -> str | None:
+    kind = f.metadata.get("path")
+    if kind is None or not f.metadata.get("must_exist") or not isinstance(value, str):
+        return None
+    if value == "" and f.default == "":
+        return None  # the empty default means "not given"
+    return path_problem(value, kind, f.metadata.get("resolve"))
+
+
+def path_problem(value: str, kind: str = "file", resolve: Callable[[str], Any] | None = None) -> str | None:
+    """Why ``value`` is not an existing ``kind`` ("file", "dir" or "any") path, or None.
+
+    A relative path is taken against the working folder, as a node opening it does, unless
+    ``resolve`` (the node's own lookup) maps the value to the path the node opens.
+    """
+    p = Path(resolve(value) if resolve is not None else value)
+    ok = {"file": p.is_file, "dir": p.is_dir, "any": p.exists}[kind]()
+    if ok:
+        return None
+    what = {"file": "file not found", "dir": "folder not found", "any": "no such file or folder"}[kind]
+    if p.exists():
+        what = {"file": "is a folder, not a file", "dir": "is a file, not a folder"}[kind]
+    where = "" if p.is_absolute() else f" (relative to the working folder {os.getcwd()})"
+    return f"{value}: {what}{where}"
+
+
+def _show(value: Any) -> str:
+    return repr(list(value)) if isinstance(value, tuple) else repr(value)
 
 
 def _convert(hint: Any, value: Any) -> Any:

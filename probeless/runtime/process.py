@@ -4,7 +4,9 @@ Lifecycle: load the resolved graph plan from RUN_DIR, build the node, ``setup()`
 connect inputs, wait until every expected subscriber of every output is connected (readiness
 barrier), report ready to the launcher, wait for start, then run callbacks on this thread until
 the inputs end, the node stops itself, or SIGINT/SIGTERM. ``close()`` always runs; outputs get an
-end-of-stream marker on a normal end. Exit code 0 on a clean end, 1 after an error.
+end-of-stream marker on a normal end. Exit code 0 on a clean end, 1 after an error. An error of
+ours (:class:`~probeless.errors.ProbelessError`: a bad param, a missing scene file, a dead camera...)
+is logged as one line naming the node; anything else with its traceback (a bug).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from typing import Any, Callable
 import msgpack
 import zmq
 
-from probeless.errors import TransportError
+from probeless.errors import GraphError, ProbelessError, TransportError
 from probeless.messages.base import Message
 from probeless.messages.diagnostics import InputCounters, NodeStatus
 from probeless.messages.header import Header, Tick
@@ -147,9 +149,17 @@ class NodeRuntime:
         except TransportError as exc:
             if not self.stop_requested:
                 self.log.error("%s", exc)
+        except ProbelessError as exc:  # our own errors say what is wrong: one line, no traceback
+            self.log.error("%s", self._one_line(exc))
         except Exception:
             self.log.error("node crashed:\n%s", traceback.format_exc().rstrip())
         return self._finish(eos=ok, code=0 if ok or self.stop_requested else 1)
+
+    def _one_line(self, exc: ProbelessError) -> str:
+        """``node 'ID': ErrorType: message`` (a GraphError/ParamError names the node itself)."""
+        if isinstance(exc, GraphError) and exc.node_id:
+            return f"{type(exc).__name__}: {exc}"
+        return f"node '{self.node_id}': {type(exc).__name__}: {exc}"
 
     def _start_receiver(self) -> None:
         control = (self.control_endpoint, self.node_id) if self.control_endpoint else None
@@ -304,6 +314,9 @@ class NodeRuntime:
         if self.node is not None:
             try:
                 self.node.close()
+            except ProbelessError as exc:
+                self.log.error("close() failed: %s", self._one_line(exc))
+                code = 1
             except Exception:
                 self.log.error("close() failed:\n%s", traceback.format_exc().rstrip())
                 code = 1

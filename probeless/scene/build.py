@@ -11,6 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from probeless.color import from_srgb8
 from probeless.errors import SceneError
 from probeless.scene.geometry import AreaLight, SceneGeometry, Surface
 from probeless.scene.obj import place_mesh, read_obj, vertex_normals
@@ -20,17 +21,12 @@ from probeless.scene.tessellate import box_faces, quad, triangulate
 EMITTER_OFFSET_M = 0.002  # windows sit this far in front of their wall, to avoid z-fighting
 
 
-def srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values in 0..1 to linear (IEC 61966-2-1)."""
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
-
-
 def load_texture(path) -> np.ndarray:
     """Linear float32 RGB albedo texture (H, W, 3) from an sRGB image file."""
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise SceneError(f"{path}: cannot read texture image")
-    return srgb_to_linear(img[:, :, ::-1].astype(np.float32) / 255.0).astype(np.float32)
+    return from_srgb8(img[:, :, ::-1])
 
 
 def _surface(name: str, tris: tuple[np.ndarray, np.ndarray, np.ndarray], material: Material, **kw) -> Surface:

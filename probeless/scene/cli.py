@@ -57,7 +57,7 @@ def cmd_check(ns: argparse.Namespace) -> int:
 
 def cmd_render(ns: argparse.Namespace) -> int:
     from probeless.bag.writer import BagWriter
-    from probeless.nodes.bag.recorder import git_revision
+    from probeless.provenance import git_revision
     from probeless.scene.parse import load_scene
     from probeless.scene.rig import Rig, frame_schedule
     from probeless.wire import encode

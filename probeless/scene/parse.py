@@ -10,23 +10,14 @@ from pathlib import Path
 import numpy as np
 
 from probeless.errors import GraphError, SceneError
+from probeless.geom.rotation import rotation_from_rpy
 from probeless.launch.yamlload import load_yaml
-from probeless.scene import polygon
 from probeless.scene.fields import Where, boolean, integer, mapping, number, sequence, string, vector
 from probeless.scene.spec import (FisheyeCamera, Furniture, Keyframe, Light, Material, RgbdCamera, Scene,
                                   VirtualObject, Window)
 from probeless.scene.validate import check_scene
 
 DEFAULT_COLORS = {"walls": (0.7, 0.7, 0.68), "floor": (0.35, 0.25, 0.18), "ceiling": (0.85, 0.85, 0.83)}
-
-
-def rotation_from_rpy(rpy_deg: np.ndarray) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll), i.e. scipy ``Rotation.from_euler('xyz', rpy_deg, degrees=True)``."""
-    r, p, y = np.radians(rpy_deg)
-    rx = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
-    ry = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
-    rz = np.array([[np.cos(y), -np.sin(y), 0], [np.sin(y), np.cos(y), 0], [0, 0, 1]])
-    return rz @ ry @ rx
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -188,4 +179,4 @@ def _trajectory(v, where: Where) -> tuple[Keyframe, ...]:
     return tuple(out)
 
 
-__all__ = ["load_scene", "rotation_from_rpy", "polygon"]
+__all__ = ["load_scene"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from probeless.messages.lighting import sample_cubemap
+from probeless.geom.cube import sample_cubemap
 
 # Middle row of the net, left to right: views turning right (clockwise seen from above), z up.
 NET_FORWARDS = ((1, 0, 0), (0, -1, 0), (-1, 0, 0), (0, 1, 0))

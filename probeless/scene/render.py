@@ -9,26 +9,20 @@ construction: the scene is static. The GL context is current on the thread that 
 
 from __future__ import annotations
 
+from pathlib import Path
 
 import moderngl
-
 import numpy as np
 
 from probeless.errors import SceneError
+from probeless.geom.cube import cube_face_clip_from_world
+from probeless.geom.projection import clip_from_camera
+from probeless.gl.context import GL_TEXTURE_CUBE_MAP_SEAMLESS, create_context, current_context
+from probeless.gl.programs import load_program, mat_bytes, set_uniforms
+from probeless.gl.textures import copy_to_cube_face, float_target, upload_texture
 from probeless.scene.geometry import AreaLight, SceneGeometry
-from probeless.scene.gl import (
-    GL_TEXTURE_CUBE_MAP_SEAMLESS,
-    albedo_texture,
-    clip_from_camera,
-    copy_to_cube_face,
-    create_context,
-    current_context,
-    cube_face_clip_from_world,
-    float_target,
-    load_program,
-    mat_bytes,
-    set_uniforms,
-)
+
+SHADERS = Path(__file__).with_name("shaders")
 
 SHADOW_OFFSET_M = 0.005  # shadow-map origin in front of the light panel [m]
 SHADOW_NEAR_M = 0.001
@@ -80,8 +74,9 @@ class SceneRenderer:
             raise SceneError(f"SceneGeometry.lights: {n_lights} lights, this GL allows {ctx.max_texture_units - 1}")
         ctx.enable_direct(GL_TEXTURE_CUBE_MAP_SEAMLESS)
         self._shadow_size, self._samples = shadow_size, light_samples
-        self._shade = load_program(ctx, "shade", {"NUM_LIGHTS": n_lights, "LIGHT_SAMPLES": light_samples})
-        self._shadow, self._rays = load_program(ctx, "shadow"), load_program(ctx, "rays")
+        self._shade = load_program(ctx, "shade", {"NUM_LIGHTS": n_lights, "LIGHT_SAMPLES": light_samples}, SHADERS)
+        self._shadow = load_program(ctx, "shadow", shader_dir=SHADERS)
+        self._rays = load_program(ctx, "rays", shader_dir=SHADERS)
         self._copy = {c: load_program(ctx, "cubecopy", {"FORMAT": f}) for c, f in ((4, "rgba32f"), (1, "r32f"))}
         self._surfaces = sorted(geometry.surfaces, key=lambda s: s.emissive)  # shadow casters first
         data = np.concatenate([np.hstack([s.positions, s.normals, s.uvs]) for s in self._surfaces])
@@ -94,7 +89,9 @@ class SceneRenderer:
         self._ranges = list(zip(starts[:-1], np.diff(starts).tolist()))
         self._casters = sum(len(s.positions) for s in self._surfaces if not s.emissive)
         self._white = ctx.texture((1, 1), 3, np.ones(3, "f4").tobytes(), dtype="f4")
-        self._textures = [self._white if s.texture is None else albedo_texture(ctx, s.texture) for s in self._surfaces]
+        self._textures = [self._white if s.texture is None else
+                          upload_texture(ctx, s.texture, filter="trilinear", repeat=True)  # tiled albedo
+                          for s in self._surfaces]
         lo, hi = geometry.bounds()
         self._far = 2.0 * float(np.linalg.norm(hi - lo)) + 1.0
         self._targets: dict[tuple[int, int, int], moderngl.Framebuffer] = {}
@@ -205,10 +202,7 @@ class SceneRenderer:
             if rays.ndim != 3 or rays.shape[2] != 3:
                 raise SceneError(f"render_rays: rays shape {rays.shape}, expected (H, W, 3)")
             clean = np.where(np.all(np.isfinite(rays), axis=2, keepdims=True), rays, 0.0).astype("f4")
-            if self._ray_tex is not None:
-                self._ray_tex[1].release()
-            tex = self.ctx.texture((rays.shape[1], rays.shape[0]), 3, clean.tobytes(), dtype="f4")
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            tex = upload_texture(self.ctx, clean, self._ray_tex[1] if self._ray_tex else None, repeat=True)
             self._ray_tex = (rays, tex)  # holding the array keeps its id from being reused
         return self._ray_tex[1]
 

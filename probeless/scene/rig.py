@@ -19,6 +19,7 @@ from typing import Iterator
 
 import numpy as np
 
+from probeless.color import linear_to_srgb
 from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.header import Header, shift_stamp
 from probeless.messages.lighting import Cubemap
@@ -28,12 +29,6 @@ from probeless.scene.spec import Scene
 from probeless.scene.trajectory import camera_pose
 
 RGBD_FRAME, FISHEYE_FRAME = "rgbd", "fisheye"
-
-
-def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    """Linear 0..1 to sRGB-encoded 0..1 (IEC 61966-2-1)."""
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
 _SRGB_STEPS = 65535

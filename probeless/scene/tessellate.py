@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from probeless.errors import SceneError
-from probeless.scene.polygon import signed_area
+from probeless.geom.polygon import signed_area
 
 
 def _cross2(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:

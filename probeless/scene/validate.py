@@ -1,10 +1,12 @@
-"""Geometric consistency of a parsed scene: simple CCW floorplan, everything inside the room."""
+"""Geometric consistency of a parsed scene: a valid floorplan (see probeless.geom.floorplan), all inside the room."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from probeless.scene import polygon
+from probeless.errors import GeometryError
+from probeless.geom import polygon
+from probeless.geom.floorplan import check_floorplan
 from probeless.scene.fields import Where
 from probeless.scene.obj import place_mesh, read_obj
 from probeless.scene.spec import Furniture, Scene
@@ -50,11 +52,10 @@ def check_scene(scene: Scene, top: Where, doc: dict) -> None:
 
 
 def _check_floorplan(poly: np.ndarray, where: Where) -> None:
-    crossing = polygon.self_intersection(poly)
-    if crossing is not None:
-        raise where.error(f"floorplan is self-intersecting (edges {crossing[0]} and {crossing[1]} touch or cross)")
-    if polygon.signed_area(poly) <= 0:
-        raise where.error("floorplan must be counter-clockwise seen from above (its signed area is not positive)")
+    try:
+        check_floorplan(poly)
+    except GeometryError as exc:
+        raise where.error(str(exc)) from None
 
 
 def _check_window(scene: Scene, win, where: Where) -> None:

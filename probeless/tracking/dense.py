@@ -1,6 +1,6 @@
 """One Open3D tensor SLAM model on CPU:0: tracking, integration, raycasting and model extraction.
 
-See :mod:`probeless.tracking.slam` for the overview; this module holds the per-frame core.
+See :mod:`probeless.tracking.offline` for the overview; this module holds the per-frame core.
 Tracking is what ``Model.track_frame_to_model`` does (multi-scale RGB-D odometry of the input frame
 against the raycast frame) but started from a constant-velocity prediction of the pose instead of
 the raycast pose, so skipped frames (a node that drops what it cannot process) do not lose

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from probeless.errors import BagError
-from probeless.messages.geometry import invert_transform, quat_from_matrix, transform_from
+from probeless.geom.rotation import invert_transform, quat_from_matrix, transform_from
 from probeless.tracking.interp import interpolate_pose
 
 MODES = ("interpolated", "extrapolated", "nearest", "latest")
@@ -156,7 +156,7 @@ def scene_extrinsics(metadata: dict, where: str) -> np.ndarray:
     """fisheye_from_rgbd of the scene a recording was rendered from (its ``probeless.scene`` metadata)."""
     import yaml
 
-    from probeless.tracking.interp import transform_from_rpy
+    from probeless.geom.rotation import transform_from_rpy
 
     text = metadata.get("probeless.scene", {}).get("yaml")
     if text is None:

@@ -1,11 +1,11 @@
-"""Pose interpolation in time: slerp, constant-velocity inter/extrapolation and a bounded pose buffer.
+"""Pose interpolation in time: constant-velocity inter/extrapolation and a bounded pose buffer.
 
 The RGB-D and fisheye cameras are not synchronised, so the fisheye pose at a fisheye stamp comes
 from the RGB-D poses around it (paper §4.3: translation linearly, rotation by quaternion slerp).
 ``interpolate_pose`` also extrapolates (t outside [t0, t1]): the same formulas continued, i.e.
 constant linear velocity of the camera origin and constant angular velocity.
 
-Quaternions are ``[x, y, z, w]`` (scipy order, see :mod:`probeless.messages.geometry`).
+Quaternions are ``[x, y, z, w]`` (scipy order); slerp and the rest are in :mod:`probeless.geom.rotation`.
 """
 
 from __future__ import annotations
@@ -15,40 +15,7 @@ import bisect
 import numpy as np
 
 from probeless.errors import ProbelessError
-from probeless.messages.geometry import (matrix_from_quat, quat_conjugate, quat_from_matrix, quat_multiply,
-                                         quat_normalize, transform_from)
-
-
-def slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
-    """Unit quaternion a fraction ``s`` along the shortest arc from ``q0`` to ``q1`` (any real s).
-
-    q1 and -q1 are the same rotation: the relative rotation ``q0^-1 q1`` is taken with w >= 0, so
-    the arc is the shorter one (angle <= 180 degrees) whatever the signs. s outside [0, 1]
-    continues the arc at the same angular velocity (extrapolation). Identical rotations give q0
-    exactly (sin(s a)/sin(a) is replaced by its limit). At exactly 180 degrees (w = 0) both arcs
-    are equally short and the one towards q1 *as given* is taken; any noise on a pair that far
-    apart picks the direction, so such a pair carries no usable angular velocity.
-    """
-    q0, q1 = quat_normalize(q0), quat_normalize(q1)
-    r = quat_multiply(quat_conjugate(q0), q1)
-    if r[3] < 0:
-        r = -r
-    n = float(np.linalg.norm(r[:3]))
-    half = np.arctan2(n, r[3])  # half the relative angle, in [0, pi/2]
-    k = np.sin(s * half) / n if n > 1e-12 else s
-    step = np.array([*(k * r[:3]), np.cos(s * half)])
-    return quat_normalize(quat_multiply(q0, step))
-
-
-def transform_from_rpy(translation, rpy_deg) -> np.ndarray:
-    """4x4 rigid transform in the scene-file convention: p' = R p + t, R = Rz(yaw) Ry(pitch) Rx(roll)
-    (scipy ``Rotation.from_euler('xyz', rpy_deg, degrees=True)``); used for ``fisheye_from_rgbd``."""
-    from probeless.scene.parse import rotation_from_rpy
-
-    t, rpy = np.asarray(translation, dtype=np.float64), np.asarray(rpy_deg, dtype=np.float64)
-    if t.shape != (3,) or rpy.shape != (3,):
-        raise ProbelessError(f"transform_from_rpy: need 3 + 3 numbers, got translation {t.tolist()}, rpy_deg {rpy.tolist()}")
-    return transform_from(rotation_from_rpy(rpy), t)
+from probeless.geom.rotation import matrix_from_quat, quat_from_matrix, slerp, transform_from
 
 
 def interpolate_pose(T0: np.ndarray, t0: float, T1: np.ndarray, t1: float, t: float) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Trajectory plots (PNG): estimated (rigidly aligned) vs true positions, and the ATE over time."""
+"""Trajectory plots (PNG): estimated (rigidly aligned) vs true positions, and the ATE over time; fisheye pose errors."""
 
 from __future__ import annotations
 
@@ -59,3 +59,32 @@ def plot_trajectory(path: str | Path, *, t_s: np.ndarray, est_aligned: np.ndarra
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def plot_fisheye_errors(name: str, errors: dict, out: str | Path) -> Path:
+    """PNG of :func:`probeless.tracking.fisheye_eval.evaluate`'s errors (mode -> ModeErrors): rotation
+    and translation error vs time (top) and their histograms (bottom), log scales."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    floor = {"rot_deg": 1e-6, "trans_mm": 1e-5}  # exact poses would vanish from a log axis
+    fig, axes = plt.subplots(2, 2, figsize=(12, 7))
+    for col, (key, label) in enumerate((("rot_deg", "rotation error [deg]"), ("trans_mm", "translation error [mm]"))):
+        values = {m: np.maximum(getattr(e, key), floor[key]) for m, e in errors.items()}
+        both = np.concatenate([v for v in values.values() if len(v)] or [np.array([floor[key], 1.0])])
+        bins = np.geomspace(both.min(), max(both.max(), both.min() * 10), 40)
+        for mode, e in errors.items():
+            style = "--" if mode == "nearest" else "-"  # nearest and latest coincide when the offset is < half a period
+            axes[0, col].plot(e.stamps_ns / 1e9, values[mode], style, marker=".", ms=3, lw=0.8, label=mode)
+            axes[1, col].hist(values[mode], bins=bins, histtype="step", linestyle=style, label=mode)
+        axes[0, col].set(yscale="log", xlabel="fisheye stamp [s]", ylabel=label)
+        axes[1, col].set(xscale="log", xlabel=label, ylabel="frames")
+        axes[0, col].legend(fontsize=8)
+        axes[0, col].grid(True, which="both", alpha=0.3)
+    fig.suptitle(f"fisheye pose from RGB-D poses: {name}")
+    fig.tight_layout()
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+    return Path(out)

@@ -45,7 +45,7 @@ def params_from(ns: argparse.Namespace):
 def cmd_slam_run(ns: argparse.Namespace) -> int:
     """Run, write the trajectory, print the summary. Returns the exit status."""
     from probeless.progress import stdout_to_stderr
-    from probeless.tracking.slam import run_slam
+    from probeless.tracking.offline import run_slam
     from probeless.tracking.tum import write_tum
 
     params = params_from(ns)

@@ -14,7 +14,7 @@ from typing import Iterable, Sequence, TextIO
 import numpy as np
 
 from probeless.errors import ProbelessError
-from probeless.messages.geometry import quat_from_matrix
+from probeless.geom.rotation import quat_from_matrix
 
 HEADER = "# timestamp tx ty tz qx qy qz qw"
 

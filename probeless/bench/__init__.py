@@ -1,0 +1,26 @@
+"""Benchmarks: ``probeless bench NAME [--json] [--quick] [its own options]``, or ``python -m probeless.bench.NAME``.
+
+``BENCHMARKS`` maps each benchmark's name to its module and a one-line help. Every benchmark module
+exposes ``add_arguments(parser)`` (its own options; ``--json`` and ``--quick`` come from
+:func:`probeless.bench.common.add_common_arguments`) and ``run(ns) -> int``. Benchmarks launch
+graphs of registered node types (the benchmark nodes are in ``probeless.nodes.bench``); they never
+import ``probeless.nodes``. Importing this package is cheap: modules are imported when run.
+"""
+
+from __future__ import annotations
+
+BENCHMARKS: dict[str, tuple[str, str]] = {
+    "bus": ("probeless.bench.bus", "our node-to-node bus vs raw pyzmq PUB/SUB: throughput, latency, loss"),
+    "bag": ("probeless.bench.bag", "recording: recorder vs raw mcap writer, replay timing, lockstep determinism"),
+    "sensors": ("probeless.bench.sensors", "synthetic rig render rate, LUT vs per-pixel undistortion"),
+    "undistort": ("probeless.bench.undistort",
+                  "fisheye undistortion: precomputed LUT + cv2.remap vs per-pixel model evaluation"),
+    "slam": ("probeless.bench.slam", "dense SLAM: step costs, sustained node rate, node overhead"),
+    "coarse": ("probeless.bench.coarse", "coarse room model: occlusion, texture update, brightness (vectorised "
+                                         "vs serial), inpainting, read-back"),
+    "pipeline": ("probeless.bench.pipeline", "full pipeline: per-stage costs, latency, frame rate, drops"),
+    "dense": ("probeless.bench.dense", "dense model cubemap rendering vs Open3D raycast"),
+    "pano": ("probeless.bench.pano", "360° video IBL: ITMO, diffuse map, compositing, brute force side by side"),
+}
+
+__all__ = ["BENCHMARKS"]

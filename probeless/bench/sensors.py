@@ -1,0 +1,98 @@
+"""``probeless bench sensors``: synthetic rig render rate, and LUT undistortion against per-pixel model evaluation.
+
+1. **Rig render rate** on the default scene (``launch/scenes/l_shaped_lounge.yaml``: 640x480 RGB-D,
+   1024x1024 omnidir fisheye through a 512 cubemap, one 64-texel ground-truth cubemap per fisheye
+   frame): frames rendered back to back after one warm-up frame of each kind; RGB-D frames/s (colour
+   + depth + pose), fisheye frames/s without and with the ground-truth cubemaps, and the share of a
+   frame spent in the GPU renderer (llvmpipe on this machine: the CPU).
+2. **Undistortion** (``probeless.bench.undistort``): a 1024x1024 fisheye frame converted to the
+   runtime omnidir model by ``cv2.remap`` with a precomputed look-up table and, side by side in the
+   same process, by evaluating the camera models for every pixel each frame;
+   ``undistort_speedup`` = direct time / LUT time (goal >= 20), ``max_px_diff`` = largest difference
+   of the sampling positions (goal <= 0.5 px).
+
+``--json`` prints exactly one JSON object on stdout; progress goes to stderr.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+
+import numpy as np
+
+from probeless.bench.common import emit, log, rounded
+from probeless.paths import REPO_ROOT
+
+SCENE = REPO_ROOT / "launch" / "scenes" / "l_shaped_lounge.yaml"
+GOALS = {"undistort_speedup_min": 20.0, "max_px_diff_max": 0.5}
+
+
+def _rate(fn, events) -> tuple[float, float]:
+    """(frames per second, median seconds per frame) of ``fn`` over ``events``."""
+    times = []
+    for event in events:
+        t0 = time.perf_counter()
+        fn(event)
+        times.append(time.perf_counter() - t0)
+    return len(times) / sum(times), float(np.median(times))
+
+
+def bench_rig(quick: bool) -> dict:
+    """Render rates of the default scene."""
+    from probeless.scene.parse import load_scene
+    from probeless.scene.rig import FISHEYE_FRAME, RGBD_FRAME, Rig, frame_schedule
+
+    scene = load_scene(SCENE)
+    events = frame_schedule(scene)
+    rgbd = [e for e in events if e.kind == RGBD_FRAME][: 6 if quick else 30]
+    fish = [e for e in events if e.kind == FISHEYE_FRAME][: 3 if quick else 12]
+    t0 = time.perf_counter()
+    rig = Rig(scene)
+    setup_s = time.perf_counter() - t0
+    rig.render_rgbd(rgbd[0])
+    list(rig.messages(fish[0]))  # warm-up: shader compilation, texture uploads
+    log(f"rig: {len(rgbd)} RGB-D and {len(fish)} fisheye frames of {scene.name}")
+    rgbd_fps, rgbd_s = _rate(rig.render_rgbd, rgbd)
+    fish_fps, fish_s = _rate(rig.render_fisheye, fish)
+    full_fps, _ = _rate(lambda e: list(rig.messages(e)), fish)
+    rig.release()
+    return {"scene": scene.name, "setup_s": setup_s, "rgbd_fps": rgbd_fps, "rgbd_ms": rgbd_s * 1e3,
+            "fisheye_fps": fish_fps, "fisheye_ms": fish_s * 1e3, "fisheye_with_gt_envmaps_fps": full_fps,
+            "rgbd_size": [scene.rgbd.width, scene.rgbd.height],
+            "fisheye_size": [scene.fisheye.width, scene.fisheye.height]}
+
+
+def main(json_out: bool = False, quick: bool = False) -> int:
+    from probeless.bench.undistort import measure as bench_undistort
+
+    rig = bench_rig(quick)
+    log(f"rig: RGB-D {rig['rgbd_fps']:.1f} frames/s, fisheye {rig['fisheye_fps']:.1f} frames/s")
+    und = bench_undistort(quick=quick)
+    log(f"undistort: LUT {und['lut_ms']:.2f} ms, direct {und['direct_ms']:.1f} ms, "
+        f"speedup {und['undistort_speedup']:.1f}x, max sampling difference {und['max_px_diff']:.3g} px")
+    result = {"benchmark": "sensors", "quick": quick, "machine": platform.machine(), "rig": rig, "undistort": und,
+              "undistort_speedup": und["undistort_speedup"], "goals": GOALS,
+              "goals_met": bool(und["undistort_speedup"] >= GOALS["undistort_speedup_min"]
+                                and und["max_px_diff"] <= GOALS["max_px_diff_max"])}
+    emit(rounded(result), json_out, print_table)
+    return 0
+
+
+def print_table(result: dict) -> None:
+    print(json.dumps(result, indent=2))
+
+
+def add_arguments(parser) -> None:
+    """No options besides ``--json`` / ``--quick``."""
+
+
+def run(ns) -> int:
+    return main(json_out=ns.json, quick=ns.quick)
+
+
+if __name__ == "__main__":
+    from probeless.bench.common import module_main
+
+    raise SystemExit(module_main(__spec__.name))

@@ -1,0 +1,96 @@
+"""``probeless eval envmap SCENE``: ours vs the baseline and the ablations against the rig's true maps.
+
+The compute is :func:`probeless.envmap.evaluate.evaluate_envmaps`, the pictures
+:mod:`probeless.envmap.figures`. ``--plot`` has no ``--figure`` alias here: ``--figure`` already
+abbreviates ``--figures DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from probeless.envmap.methods import METHODS, METRICS
+from probeless.eval.harness import add_common_options, emit
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``probeless eval envmap``."""
+    p.add_argument("scene", metavar="SCENE_OR_BAG", help="scene file (.yaml), or a recording made by "
+                                                         "`scene render` (evaluated through the scene it stores)")
+    add_common_options(p, json_help="print one JSON object: method -> object -> metric",
+                       figure=("--plot", "envmap PSNR over time, one line per method"), figure_alias=False,
+                       progress_help="no progress bars")
+    p.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS), help="methods to run")
+    p.add_argument("--duration", type=float, metavar="S", help="scene time to evaluate [s] (default: all)")
+    p.add_argument("--every", type=int, default=3, help="compare every n-th fisheye frame used (default 3)")
+    p.add_argument("--stride", type=int, default=1, help="use every n-th fisheye frame (default 1)")
+    p.add_argument("--face-size", type=int, default=64, help="cubemap face size [texels] (default 64)")
+    p.add_argument("--atlas-size", type=int, default=512, help="coarse atlas side [texels] (default 512)")
+    p.add_argument("--figures", metavar="DIR", help="write mirror spheres of the last frame: ours / baseline / truth")
+
+
+def _scene_path(path: str) -> str:
+    """A scene file, or the scene a `scene render` recording stores in its metadata (written to a temp file)."""
+    p = Path(path)
+    if p.suffix in (".yaml", ".yml"):
+        return str(p)
+    import tempfile
+
+    from probeless.bag.reader import BagReader
+    from probeless.errors import BagError
+
+    with BagReader(p) as reader:
+        meta = reader.metadata().get("probeless.scene", {})
+    if "yaml" not in meta:
+        raise BagError(f"{path}: no probeless.scene metadata; evaluate the scene file instead")
+    if Path(meta.get("file", "")).is_file():
+        return meta["file"]
+    tmp = Path(tempfile.mkdtemp()) / f"{meta.get('name', 'scene')}.yaml"  # assets must then be absolute paths
+    tmp.write_text(meta["yaml"])
+    return str(tmp)
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def run(ns: argparse.Namespace) -> int:
+    """Render, evaluate every method, draw, print the table or one JSON object. Returns the exit status."""
+    from probeless.envmap.evaluate import evaluate_envmaps
+    from probeless.progress import stdout_to_stderr
+
+    with stdout_to_stderr():
+        rendered, results = evaluate_envmaps(_scene_path(ns.scene), duration=ns.duration, methods=ns.methods,
+                                             face_size=ns.face_size, atlas_size=ns.atlas_size, every=ns.every,
+                                             stride=ns.stride, show_progress=not ns.no_progress)
+    out: dict[str, Any] = {"scene": ns.scene, "times_s": rendered.eval_times, "units": "camera LDR (PSNR peak 1)"}
+    for m, res in results.items():
+        means = res.means()
+        out[m] = {o: {**{k: _finite(v) for k, v in vals.items()},
+                      "series": {k: [_finite(x) for x in res.series[o][k]] for k in METRICS}}
+                  for o, vals in means.items()}
+    if "ours" in results and "baseline" in results:
+        out["ours_minus_baseline_psnr_db"] = {o: _finite(results["ours"].means()[o]["envmap_psnr"]
+                                                         - results["baseline"].means()[o]["envmap_psnr"])
+                                              for o in results["ours"].means()}
+    if ns.figure:
+        from probeless.envmap.figures import plot_psnr
+
+        plot_psnr(rendered, results, ns.figure)
+    if ns.figures:
+        from probeless.envmap.figures import mirror_figure
+
+        mirror_figure(rendered, results, ns.figures)
+    return emit(ns, out, lambda _: table(results))
+
+
+def table(results) -> str:
+    """Mean metrics per method and object as a text table."""
+    lines = [f"{'method':<16}{'object':<12}" + "".join(f"{k:>14}" for k in METRICS)]
+    for m, res in results.items():
+        for o, vals in res.means().items():
+            lines.append(f"{m:<16}{o:<12}" + "".join(f"{vals[k]:>14.3f}" for k in METRICS))
+    return "\n".join(lines)
