@@ -6,14 +6,24 @@ Families: header (core/*), diagnostics, sensor, geometry, mesh, lighting. See
 
 from __future__ import annotations
 
-from probeless.messages.base import (ArraySpec, FieldSpec, Message, Struct, array, describe, lookup,
-                                     message, registry, schema_of)
-from probeless.messages.header import Clock, Header, Tick
+from probeless.messages.base import (
+                                     ArraySpec,
+                                     FieldSpec,
+                                     Message,
+                                     Struct,
+                                     array,
+                                     describe,
+                                     lookup,
+                                     message,
+                                     registry,
+                                     schema_of,
+)
 from probeless.messages.diagnostics import InputCounters, NodeStatus, StageTiming
-from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.messages.geometry import Floorplan, PoseStamped
-from probeless.messages.mesh import PointCloud, TriangleMesh
+from probeless.messages.header import Clock, Header, Tick
 from probeless.messages.lighting import BrightnessDelta, Cubemap, CubemapLevel, SHCoefficients
+from probeless.messages.mesh import PointCloud, TriangleMesh
+from probeless.messages.sensor import CameraInfo, DepthImage, Image
 
 __all__ = [
     # machinery

@@ -70,7 +70,8 @@ class TrackingState(Message):
     frames_lost: int = 0            # frames whose tracking failed (solver, fitness, NaN, motion) [count]
     frames_invalid: int = 0         # frames rejected before tracking (no depth, bad size) [count]
     frames_skipped: int = 0         # messages the node left unpaired (rgb/depth sync failures) [count]
-    frames_dropped: int = 0         # rgb frames that never reached the node (header.seq gaps: queue policy, upstream) [count]
+    # rgb frames that never reached the node (header.seq gaps: queue policy, upstream) [count]
+    frames_dropped: int = 0
     consecutive_failures: int = 0   # lost + invalid frames since the last tracked one [count]
     last_good_stamp_ns: int = 0     # stamp of the last tracked frame; 0 = none yet [ns]
     fitness: float = 0.0            # inlier fraction of the last tracking, nan when not tracked [0..1]

@@ -71,7 +71,8 @@ class Floorplan(Message):
     """The room as an extruded polygon: floor at z = 0, ceiling at ``ceiling_height``."""
 
     header: Header          # frame_id = "world" (z-up)
-    vertices: np.ndarray = array("float64", (None, 2))  # floor polygon (x, y), counter-clockwise seen from above, not closed [m, world]
+    # floor polygon (x, y), counter-clockwise seen from above, not closed [m, world]
+    vertices: np.ndarray = array("float64", (None, 2))
     ceiling_height: float   # ceiling z above the floor [m, world]
 
     def validate(self) -> None:

@@ -29,7 +29,8 @@ class CubemapLevel(Struct):
     """One prefiltered level: the radiance convolved for a GGX roughness (split-sum prefilter)."""
 
     roughness: float    # perceptual roughness this level is filtered for [0..1]
-    faces: np.ndarray = array(("float16", "float32", "uint8"), (6, "s", "s", "c"))  # faces [face, row, col, channel], world
+    # faces [face, row, col, channel], world
+    faces: np.ndarray = array(("float16", "float32", "uint8"), (6, "s", "s", "c"))
 
 
 @message("lighting/Cubemap", version=1)
@@ -40,7 +41,8 @@ class Cubemap(Message):
     header: Header      # frame_id = "world"; stamp = the frame it was rendered for
     object_id: str      # virtual object this map lights
     position: np.ndarray = array("float64", (3,))  # cube centre (x, y, z) [m, world]
-    faces: np.ndarray = array(("float16", "float32", "uint8"), (6, "s", "s", "c"))  # mirror (roughness 0) faces [face, row, col, RGB(A)], world
+    # mirror (roughness 0) faces [face, row, col, RGB(A)], world
+    faces: np.ndarray = array(("float16", "float32", "uint8"), (6, "s", "s", "c"))
     mips: tuple[CubemapLevel, ...] = ()  # prefiltered levels, increasing roughness, same dtype/channels as faces
     linear: bool = True  # True = linear HDR radiance [scene-referred]; False = display-referred LDR (sRGB)
 

@@ -35,7 +35,8 @@ class PointCloud(Message):
     header: Header      # stamp = capture time; frame_id = frame the points are expressed in
     points: np.ndarray = array("float32", ("n", 3))                # positions (x, y, z) [m, header.frame_id]
     colors: np.ndarray = array(("uint8", "float32"), ("n", 3))     # RGB per point [uint8 sRGB | float linear 0..1]
-    normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))  # unit normals, 0 rows = none [-, header.frame_id]
+    # unit normals, 0 rows = none [-, header.frame_id]
+    normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))
 
     def validate(self) -> None:
         _optional_rows(self, "normals", len(self.points), "point")
@@ -52,9 +53,12 @@ class TriangleMesh(Message):
     header: Header      # stamp = time the mesh was built; frame_id = frame of the vertices
     vertices: np.ndarray = array("float32", ("v", 3))              # positions (x, y, z) [m, header.frame_id]
     triangles: np.ndarray = array(("int32", "uint32"), ("t", 3))   # vertex indices, counter-clockwise front [index]
-    vertex_colors: np.ndarray = array(("float32", "uint8"), (None, 3), default_factory=_empty(3))  # RGB, 0 rows = none [uint8 sRGB | float linear 0..1]
-    vertex_normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))  # unit normals, 0 rows = none [-, header.frame_id]
-    uvs: np.ndarray = array("float32", (None, 2), default_factory=_empty(2))  # texture coords (u right, v up, OpenGL), 0 rows = none [0..1]
+    # RGB, 0 rows = none [uint8 sRGB | float linear 0..1]
+    vertex_colors: np.ndarray = array(("float32", "uint8"), (None, 3), default_factory=_empty(3))
+    # unit normals, 0 rows = none [-, header.frame_id]
+    vertex_normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))
+    # texture coords (u right, v up, OpenGL), 0 rows = none [0..1]
+    uvs: np.ndarray = array("float32", (None, 2), default_factory=_empty(2))
 
     def validate(self) -> None:
         nv = len(self.vertices)

@@ -35,13 +35,15 @@ class Image(Message):
     """A colour or mono image; always rank 3 (mono has c=1). ``encoding`` must match dtype and c."""
 
     header: Header      # stamp = exposure time; frame_id = the camera's optical frame
-    data: np.ndarray = array(("uint8", "uint16", "float16", "float32"), ("h", "w", "c"))  # pixels [row, col, channel], optical frame
+    # pixels [row, col, channel], optical frame
+    data: np.ndarray = array(("uint8", "uint16", "float16", "float32"), ("h", "w", "c"))
     encoding: str = "rgb8"  # one of ENCODINGS, e.g. rgb8, bgr8, mono8, mono16, rgbf32 [-]
 
     def validate(self) -> None:
         want = ENCODINGS.get(self.encoding)
         if want is None:
-            raise SchemaError(f"Image.encoding: unknown encoding {self.encoding!r}, expected one of {sorted(ENCODINGS)}")
+            raise SchemaError(f"Image.encoding: unknown encoding {self.encoding!r}, "
+                              f"expected one of {sorted(ENCODINGS)}")
         dtype, channels = want
         if self.data.dtype != _ENCODING_DTYPES[dtype] or self.data.shape[2] != channels:
             raise SchemaError(f"Image.encoding: {self.encoding!r} needs {dtype} with {channels} channel(s), "
@@ -101,11 +103,15 @@ class CameraInfo(Message):
     height: int         # image height [px]
     model: str          # pinhole | omnidir | kannala_brandt | ocam
     K: np.ndarray = array("float64", (3, 3))  # camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] [px]
-    D: np.ndarray = array("float64", (None,), default_factory=lambda: np.zeros(0))  # distortion coefficients, per model [-]
+    # distortion coefficients, per model [-]
+    D: np.ndarray = array("float64", (None,), default_factory=lambda: np.zeros(0))
     xi: float = 0.0     # Mei sphere offset, omnidir only [unit sphere radii]
-    ocam_poly: np.ndarray = array("float64", (None,), default_factory=lambda: np.zeros(0))  # cam2world polynomial a0, a1, ... (a_k in [px^(1-k)])
-    ocam_invpoly: np.ndarray = array("float64", (None,), default_factory=lambda: np.zeros(0))  # world2cam polynomial, ascending (b_k in [px/rad^k])
-    ocam_affine: np.ndarray = array("float64", (3,), default_factory=lambda: np.array([1.0, 0.0, 0.0]))  # (c, d, e) stretch [-]
+    # cam2world polynomial a0, a1, ... (a_k in [px^(1-k)])
+    ocam_poly: np.ndarray = array("float64", (None,), default_factory=lambda: np.zeros(0))
+    # world2cam polynomial, ascending (b_k in [px/rad^k])
+    ocam_invpoly: np.ndarray = array("float64", (None,), default_factory=lambda: np.zeros(0))
+    # (c, d, e) stretch [-]
+    ocam_affine: np.ndarray = array("float64", (3,), default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     ocam_center: np.ndarray = array("float64", (2,), default_factory=lambda: np.zeros(2))  # (xc, yc) = (row, col) [px]
 
     def validate(self) -> None:

@@ -12,11 +12,28 @@ from typing import Callable
 
 import numpy as np
 
-from probeless.messages import (BrightnessDelta, CameraInfo, Clock, Cubemap, CubemapLevel, DepthImage, Floorplan,
-                                Header, Image, InputCounters, Message, NodeStatus, PointCloud, PoseStamped,
-                                SHCoefficients, StageTiming, Tick, TriangleMesh)
-from probeless.messages.diagnostics import TrackingState
 from probeless.geom.rotation import matrix_from_quat
+from probeless.messages import (
+    BrightnessDelta,
+    CameraInfo,
+    Clock,
+    Cubemap,
+    CubemapLevel,
+    DepthImage,
+    Floorplan,
+    Header,
+    Image,
+    InputCounters,
+    Message,
+    NodeStatus,
+    PointCloud,
+    PoseStamped,
+    SHCoefficients,
+    StageTiming,
+    Tick,
+    TriangleMesh,
+)
+from probeless.messages.diagnostics import TrackingState
 
 
 def _rng() -> np.random.Generator:

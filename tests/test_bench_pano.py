@@ -54,7 +54,8 @@ def test_stages_and_rates_are_consistent(result):
 
 def test_diffuse_side_by_side(result):
     d = result["diffuse"]
-    assert d["size"] == [64, 32] and d["all_texels"] == 2048 and d["bruteforce_texels"] == bench_pano.QUICK["brute_texels"]
+    assert (d["size"] == [64, 32] and d["all_texels"] == 2048
+            and d["bruteforce_texels"] == bench_pano.QUICK["brute_texels"])
     # the subset's texel loop, per texel, scaled to all texels; the one-off setup counted once
     assert positive(d["bruteforce_setup_ms"]) and positive(d["bruteforce_subset_ms"])
     per_texel = d["bruteforce_subset_ms"] / d["bruteforce_texels"]

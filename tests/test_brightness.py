@@ -207,7 +207,8 @@ def _blocked(viewpoint, q, poly):
     p, q = viewpoint[None, None], q[:, None]
 
     def orient(o, x, y):
-        return np.sign((x[..., 0] - o[..., 0]) * (y[..., 1] - o[..., 1]) - (x[..., 1] - o[..., 1]) * (y[..., 0] - o[..., 0]))
+        return np.sign((x[..., 0] - o[..., 0]) * (y[..., 1] - o[..., 1])
+                       - (x[..., 1] - o[..., 1]) * (y[..., 0] - o[..., 0]))
 
     return ((orient(p, q, a) * orient(p, q, b) < 0) & (orient(a, b, p) * orient(a, b, q) < 0)).any(axis=1)
 
@@ -267,7 +268,8 @@ def _atlas(stamp, k, floorplan=ROOM, size=128):
 
 
 def _static(floorplan=ROOM):
-    return [("camera_info", CAM.to_camera_info("fisheye", 0)), ("floorplan", Floorplan(Header(0, "world"), floorplan, HEIGHT))]
+    return [("camera_info", CAM.to_camera_info("fisheye", 0)),
+            ("floorplan", Floorplan(Header(0, "world"), floorplan, HEIGHT))]
 
 
 def _node(**params):
@@ -292,7 +294,8 @@ def test_node_waits_for_the_atlas_holding_the_previous_frame():
     ctx, node = _node()
     _feed(node, *_static(), ("fisheye", _fisheye(100 * MS, 0)), ("fisheye_pose", _pose(100 * MS)))
     first, = ctx.outputs("delta")
-    assert (first.header.stamp_ns, first.header.frame_id, first.sampled, first.texels_used) == (100 * MS, "fisheye", False, 0)
+    assert ((first.header.stamp_ns, first.header.frame_id, first.sampled, first.texels_used)
+            == (100 * MS, "fisheye", False, 0))
     _feed(node, ("fisheye_pose", _pose(200 * MS)), ("fisheye", _fisheye(200 * MS, 1)))
     _feed(node, ("atlas", _atlas(50 * MS, 0)))             # older than frame 0: not the one frame 1 needs
     assert len(ctx.outputs("delta")) == 1
@@ -354,7 +357,8 @@ def test_node_survives_bad_input(caplog):
     object.__setattr__(nan_pose, "target_from_source", np.full((4, 4), np.nan))   # bypasses message validation
     _feed(node, ("fisheye", _fisheye(200 * MS, 1)), ("fisheye_pose", nan_pose))
     _feed(node, ("atlas", _atlas(200 * MS, 1)))
-    _feed(node, ("fisheye", _fisheye(300 * MS, data=np.zeros((100, 120, 3), np.uint8))), ("fisheye_pose", _pose(300 * MS)))
+    _feed(node, ("fisheye", _fisheye(300 * MS, data=np.zeros((100, 120, 3), np.uint8))),
+          ("fisheye_pose", _pose(300 * MS)))
     _feed(node, ("atlas", _atlas(300 * MS, 2)))
     _feed(node, ("fisheye", _fisheye(400 * MS, 3)), ("fisheye_pose", _pose(400 * MS)))   # good again
     out = ctx.outputs("delta")

@@ -1,4 +1,5 @@
-"""Coarse model atlas (paper §4.1): layout, texel -> world mapping, and the prism mesh, against independent references."""
+"""Coarse model atlas (paper §4.1): layout, texel -> world mapping, and the prism mesh,
+against independent references."""
 
 from __future__ import annotations
 

@@ -105,7 +105,8 @@ def _crosses_any_edge(p: np.ndarray, q: np.ndarray, poly: np.ndarray) -> np.ndar
     a, b = poly, np.roll(poly, -1, axis=0)
 
     def orient(o, x, y):  # sign of the cross product (x - o) x (y - o), broadcast (K, E)
-        return np.sign((x[..., 0] - o[..., 0]) * (y[..., 1] - o[..., 1]) - (x[..., 1] - o[..., 1]) * (y[..., 0] - o[..., 0]))
+        return np.sign((x[..., 0] - o[..., 0]) * (y[..., 1] - o[..., 1])
+                       - (x[..., 1] - o[..., 1]) * (y[..., 0] - o[..., 0]))
 
     P, Q, A, B = p[None, None], q[:, None], a[None], b[None]
     crossing = (orient(P, Q, A) * orient(P, Q, B) < 0) & (orient(A, B, P) * orient(A, B, Q) < 0)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import msgpack
 import numpy as np
 import pytest
-
 from message_examples import examples
+
 from probeless import wire
 from probeless.errors import SchemaError
 from probeless.messages import Header, Image, registry

@@ -5,17 +5,17 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from probeless.messages.geometry import PoseStamped
-from probeless.messages.header import Header
-from probeless.geom.cube import cube_directions, texel_direction
-from probeless.messages.sensor import Image
-from probeless.nodes.envmap.baseline import BaselineEnvmap as BaselineNode
 from scipy.spatial.transform import Rotation
 
 from probeless.cameras.omnidir import OmnidirModel
 from probeless.envmap.baseline import BaselineMap
 from probeless.envmap.metrics import coverage
 from probeless.errors import ParamError, SchemaError
+from probeless.geom.cube import cube_directions, texel_direction
+from probeless.messages.geometry import PoseStamped
+from probeless.messages.header import Header
+from probeless.messages.sensor import Image
+from probeless.nodes.envmap.baseline import BaselineEnvmap as BaselineNode
 from probeless.runtime.testing import run_node
 
 W = 160

@@ -5,24 +5,24 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
-from probeless.messages.geometry import Floorplan, PoseStamped
-from probeless.messages.header import Header
-from probeless.geom.cube import cube_directions, cube_solid_angles, texel_from_direction
-from probeless.messages.lighting import BrightnessDelta, Cubemap, SHCoefficients
-from probeless.messages.mesh import PointCloud
-from probeless.messages.sensor import Image
-from probeless.nodes.envmap.cubemap import CubemapRenderer
 from scipy import ndimage
 
 from probeless.coarse.atlas import fit_atlas
 from probeless.coarse.model import CoarseConfig, make_layout
 from probeless.coarse.texels import texel_map
 from probeless.coarse.truth import true_atlas
+from probeless.color import srgb_to_linear
 from probeless.envmap.cubemap import EnvmapRenderer, face_buckets, prefilter
 from probeless.envmap.sh import irradiance_from_sh
+from probeless.geom.cube import cube_directions, cube_solid_angles, texel_from_direction
+from probeless.messages.geometry import Floorplan, PoseStamped
+from probeless.messages.header import Header
+from probeless.messages.lighting import BrightnessDelta, Cubemap, SHCoefficients
+from probeless.messages.mesh import PointCloud
+from probeless.messages.sensor import Image
+from probeless.nodes.envmap.cubemap import CubemapRenderer
 from probeless.runtime.params import load_params
 from probeless.runtime.testing import RecordingContext, run_node
-from probeless.color import srgb_to_linear
 from probeless.scene.parse import load_scene
 from probeless.scene.rig import Rig, expose
 
@@ -242,7 +242,8 @@ def test_node_renders_each_object_with_sh_and_mips(scene):
     params = dict(atlas_size=512, object_ids=["a", "b"], object_positions=[[2.5, 2.0, 1.0], [3.0, 3.0, 1.0]],
                   face_size=32, mip_levels=3, splat_m=0.3)
     ctx = run_node(CubemapRenderer, [("floorplan", fp), ("points", pts),
-                                     ("delta", BrightnessDelta(Header(2, "fisheye"), np.float32([0, -0.5, 0]), 10, True)),
+                                     ("delta",
+                                      BrightnessDelta(Header(2, "fisheye"), np.float32([0, -0.5, 0]), 10, True)),
                                      ("object_poses", PoseStamped(Header(3, "world"), "a", move)),
                                      ("atlas", atlas)], params)
     (a,), (b,) = ctx.outputs("envmap/a"), ctx.outputs("envmap/b")

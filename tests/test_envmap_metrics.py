@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from probeless.geom.cube import cube_solid_angles, texel_direction
 from scipy import ndimage
 
 from probeless.envmap import metrics as M
 from probeless.errors import ProbelessError
+from probeless.geom.cube import cube_solid_angles, texel_direction
 
 
 def _dirs(size):
@@ -18,7 +18,8 @@ def _dirs(size):
 
 def _ssim_reference(x, y, c1=1e-4, c2=9e-4):
     """The published SSIM formula with scipy's Gaussian filter (sigma 1.5, 11 taps), border of 5 cropped."""
-    g = lambda a: ndimage.gaussian_filter(a, 1.5, truncate=3.5, mode="reflect")  # radius 5
+    def g(a):
+        return ndimage.gaussian_filter(a, 1.5, truncate=3.5, mode="reflect")  # radius 5
     mx, my = g(x), g(y)
     sx, sy, sxy = g(x * x) - mx ** 2, g(y * y) - my ** 2, g(x * y) - mx * my
     s = (2 * mx * my + c1) * (2 * sxy + c2) / ((mx ** 2 + my ** 2 + c1) * (sx + sy + c2))

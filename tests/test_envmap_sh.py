@@ -4,7 +4,6 @@ from math import pi, sqrt
 
 import numpy as np
 import pytest
-from probeless.geom.cube import cube_directions, cube_solid_angles, texel_from_direction
 from scipy.special import sph_harm_y
 
 from probeless.envmap.sh import (
@@ -14,6 +13,7 @@ from probeless.envmap.sh import (
     radiance_from_sh,
     sh_basis,
 )
+from probeless.geom.cube import cube_directions, cube_solid_angles, texel_from_direction
 
 
 def _random_dirs(n, seed=0):

@@ -1,4 +1,5 @@
-"""``probeless eval slam`` end to end, TUM trajectory files, plots: checked against independent readings of the files."""
+"""``probeless eval slam`` end to end, TUM trajectory files, plots: checked against independent readings
+of the files."""
 
 from __future__ import annotations
 
@@ -70,7 +71,8 @@ def test_tum_round_trip_and_columns(tmp_path):
 def test_eval_slam_on_20_real_kinect_frames(tmp_path, capfd):
     traj, png = tmp_path / "traj.txt", tmp_path / "plot.png"
     code = run_cli(["eval", "slam", str(SEVEN), "--max-frames", "20", "--json", "--no-progress",
-                    "--trajectory-out", str(traj), "--plot", str(png), "--voxel-size", "0.01", "--iterations", "6", "3", "1"])
+                    "--trajectory-out", str(traj), "--plot", str(png), "--voxel-size", "0.01",
+                    "--iterations", "6", "3", "1"])
     assert code == 0
     report = json.loads(capfd.readouterr().out)  # exactly one JSON object on stdout, native warnings elsewhere
     assert report["frames"]["processed"] == 20 and report["frames"]["with_ground_truth"] == 20

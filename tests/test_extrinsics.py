@@ -13,8 +13,16 @@ import yaml
 from probeless import wire
 from probeless.bag.writer import BagWriter
 from probeless.cameras.calibrate_cli import add_calibrate_parser
-from probeless.cameras.extrinsics import (default_init, from_rpy, load_extrinsics, reprojection_errors,
-                                          rotation_error_deg, save_extrinsics, solve_fisheye_from_rgbd, to_rpy)
+from probeless.cameras.extrinsics import (
+    default_init,
+    from_rpy,
+    load_extrinsics,
+    reprojection_errors,
+    rotation_error_deg,
+    save_extrinsics,
+    solve_fisheye_from_rgbd,
+    to_rpy,
+)
 from probeless.cameras.kannala_brandt import KannalaBrandtModel
 from probeless.cameras.matching import match_rgbd_fisheye, perspective_view, view_rays
 from probeless.cameras.motion import motion_to_stamp, rgbd_motion

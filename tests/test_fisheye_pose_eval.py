@@ -31,7 +31,8 @@ OMEGA, V = np.radians(60.0), np.array([0.3, 0.1, -0.05])
 def cv_pose(t: float) -> np.ndarray:
     """world_from_rgbd at constant linear and angular velocity."""
     T = np.eye(4)
-    T[:3, :3] = Rotation.from_rotvec(AXIS * OMEGA * t).as_matrix() @ Rotation.from_euler("x", -100, degrees=True).as_matrix()
+    T[:3, :3] = (Rotation.from_rotvec(AXIS * OMEGA * t).as_matrix()
+                 @ Rotation.from_euler("x", -100, degrees=True).as_matrix())
     T[:3, 3] = [1.0, 2.0, 1.4] + V * t
     return T
 
@@ -85,7 +86,8 @@ def test_scene_truth_is_the_rigs():
     rig = Rig(scene, renderer=object(), envmaps=False)  # poses only: nothing is rendered
     inputs = fe.scene_inputs(SCENES[0])
     events = frame_schedule(scene)
-    for kind, track, pose in ((RGBD_FRAME, inputs.rgbd, rig.rgbd_pose), (FISHEYE_FRAME, inputs.fisheye, rig.fisheye_pose)):
+    for kind, track, pose in ((RGBD_FRAME, inputs.rgbd, rig.rgbd_pose),
+                              (FISHEYE_FRAME, inputs.fisheye, rig.fisheye_pose)):
         picked = [e for e in events if e.kind == kind]
         assert track.stamps_ns.tolist() == [e.stamp_ns for e in picked]
         assert np.allclose(track.poses, [pose(e.t) for e in picked], atol=1e-12)
@@ -99,7 +101,8 @@ def write_rig_bag(path: Path, scene_path: Path, rig_id: str = "rig", with_scene:
         for seq, e in enumerate(frame_schedule(scene)):
             rgbd = e.kind == RGBD_FRAME
             output = "gt/rgbd_pose" if rgbd else "gt/fisheye_pose"
-            msg = PoseStamped(Header(e.stamp_ns, "world"), e.kind, rig.rgbd_pose(e.t) if rgbd else rig.fisheye_pose(e.t))
+            msg = PoseStamped(Header(e.stamp_ns, "world"), e.kind,
+                              rig.rgbd_pose(e.t) if rgbd else rig.fisheye_pose(e.t))
             writer.write_frames(encode(f"{rig_id}/{output}", msg, rig_id, e.stamp_ns, seq=seq), log_time_ns=e.stamp_ns)
 
 

@@ -7,15 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from probeless.messages.geometry import PoseStamped
-from probeless.messages.header import Header
-from probeless.geom.cube import sample_cubemap, texel_direction
-from probeless.messages.lighting import Cubemap, SHCoefficients
-from probeless.messages.sensor import CameraInfo, DepthImage, Image
 
 from probeless.color import from_srgb8
 from probeless.envmap.sh import irradiance_from_sh, project_cubemap
 from probeless.errors import SceneError
+from probeless.geom.cube import sample_cubemap, texel_direction
+from probeless.gl.context import create_context
 from probeless.ibl.composite import composite, encode_srgb8
 from probeless.ibl.lighting import Lighting
 from probeless.ibl.materials import (
@@ -29,8 +26,11 @@ from probeless.ibl.materials import (
 )
 from probeless.ibl.mesh_io import load_mesh, place, uv_sphere
 from probeless.ibl.render import IblObject, IblRenderer
+from probeless.messages.geometry import PoseStamped
+from probeless.messages.header import Header
+from probeless.messages.lighting import Cubemap, SHCoefficients
+from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.runtime.testing import run_node
-from probeless.gl.context import create_context
 
 REPO = Path(__file__).resolve().parents[1]
 W = H = 128
@@ -253,7 +253,8 @@ def test_mesh_loading_and_placement(tmp_path):
     assert m.vertices[:, 2].min() == pytest.approx(0.0, abs=1e-9)
     np.testing.assert_allclose(m.centre[:2], [1.0, 2.0])
     lo, hi = v.min(0), v.max(0)  # the file is y-up: its y extent becomes the world height
-    assert np.ptp(m.vertices[:, 2]) == pytest.approx((hi[1] - lo[1]) * 0.2 / np.linalg.norm(v - (lo + hi) / 2, axis=1).max())
+    assert np.ptp(m.vertices[:, 2]) == pytest.approx(
+        (hi[1] - lo[1]) * 0.2 / np.linalg.norm(v - (lo + hi) / 2, axis=1).max())
     np.testing.assert_allclose(np.linalg.norm(m.normals, axis=1)[np.linalg.norm(m.normals, axis=1) > 0], 1.0,
                                atol=1e-9)
     import open3d as o3d

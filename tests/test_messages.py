@@ -6,14 +6,29 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 from message_examples import EXAMPLES, examples, header
+
 from probeless.errors import SchemaError
-from probeless.messages import (CameraInfo, CubemapLevel, DepthImage, Image,
-                                PointCloud, TriangleMesh, registry, schema_of)
 from probeless.geom.cube import texel_direction
-from probeless.geom.rotation import (invert_transform, matrix_from_quat, quat_conjugate, quat_from_matrix,
-                                     quat_multiply, quat_normalize, transform_from)
+from probeless.geom.rotation import (
+    invert_transform,
+    matrix_from_quat,
+    quat_conjugate,
+    quat_from_matrix,
+    quat_multiply,
+    quat_normalize,
+    transform_from,
+)
+from probeless.messages import (
+    CameraInfo,
+    CubemapLevel,
+    DepthImage,
+    Image,
+    PointCloud,
+    TriangleMesh,
+    registry,
+    schema_of,
+)
 
 TYPE_NAMES = sorted(registry())
 BAD_DTYPES = ("int64", "complex128", "int8", "float64", "bool")
@@ -286,7 +301,8 @@ def _special_rotations(Rotation):
     """Random rotations plus the awkward ones: identity, 180 degrees about axes and diagonals."""
     rng = np.random.default_rng(7)
     rots = list(Rotation.random(200, random_state=rng))
-    axes = np.vstack([np.eye(3), [[1, 1, 0], [1, -1, 0], [0, 1, 1], [1, 1, 1], [-1, 2, 3]], rng.standard_normal((20, 3))])
+    axes = np.vstack([np.eye(3), [[1, 1, 0], [1, -1, 0], [0, 1, 1], [1, 1, 1], [-1, 2, 3]],
+                      rng.standard_normal((20, 3))])
     for ax in axes:
         ax = ax / np.linalg.norm(ax)
         rots += [Rotation.from_rotvec(np.pi * ax), Rotation.from_rotvec((np.pi - 1e-9) * ax),

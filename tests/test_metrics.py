@@ -117,7 +117,8 @@ def test_ate_counts_only_frames_with_estimate_and_ground_truth():
 
 
 def tum_rpe(est, gt, pairs):
-    """The RPE formula of TUM's evaluate_rpe.py: ominus(ominus(est_j, est_i), ominus(gt_j, gt_i)), ominus(a,b)=a^-1 b."""
+    """The RPE formula of TUM's evaluate_rpe.py: ominus(ominus(est_j, est_i), ominus(gt_j, gt_i)),
+    ominus(a,b)=a^-1 b."""
     def ominus(a, b):
         return np.linalg.inv(a) @ b
 

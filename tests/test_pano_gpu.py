@@ -4,12 +4,12 @@ import cv2
 import numpy as np
 import pytest
 
+from probeless.color import from_srgb8
 from probeless.errors import ProbelessError
+from probeless.gl.context import create_context
 from probeless.pano import diffuse, equirect, itmo
 from probeless.pano.gpu_diffuse import GpuDiffuse
 from probeless.pano.gpu_itmo import GpuItmo
-from probeless.color import from_srgb8
-from probeless.gl.context import create_context
 
 
 @pytest.fixture(scope="module")

@@ -8,10 +8,10 @@ import cv2
 import numpy as np
 import pytest
 
+from probeless.color import from_srgb8, linear_to_srgb
 from probeless.eval import add_evaluation
 from probeless.pano import equirect, itmo_eval, itmo_maps, itmo_metrics, spheres
 from probeless.pano.itmo_maps import SphereLighting, SphereSetup
-from probeless.color import from_srgb8, linear_to_srgb
 
 SETUP = SphereSetup(size=33)
 

@@ -4,12 +4,12 @@ import cv2
 import numpy as np
 import pytest
 
+from probeless.color import from_srgb8
 from probeless.errors import ParamError, SchemaError
 from probeless.messages.header import Header
 from probeless.messages.sensor import Image
 from probeless.nodes.pano.lighting import DiffuseMap, InverseToneMap
 from probeless.pano import diffuse, equirect, itmo
-from probeless.color import from_srgb8
 from probeless.runtime.testing import run_node
 
 HEADER = Header(123_456_789, "pano", 7)

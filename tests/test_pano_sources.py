@@ -8,10 +8,10 @@ import cv2
 import numpy as np
 import pytest
 
+from probeless.color import from_srgb8
 from probeless.datasets.playback import drain
 from probeless.errors import DatasetError
 from probeless.nodes.pano.sources import PanoramaSource, Video360Source
-from probeless.color import from_srgb8
 from probeless.pano.sources import VideoFrames, equirect_ok, read_panorama
 from probeless.runtime.params import load_params
 from probeless.runtime.testing import RecordingContext

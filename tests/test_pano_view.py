@@ -7,13 +7,12 @@ import math
 import numpy as np
 import pytest
 
+from probeless.color import from_srgb8
 from probeless.errors import ProbelessError
 from probeless.pano.composite import composite_view, encode_display
 from probeless.pano.equirect import direction_to_pixel
 from probeless.pano.itmo import gamma_decode
-from probeless.color import from_srgb8
-from probeless.pano.view import (head_pose, intrinsics, look_rotation, side_by_side, stereo_eye_poses,
-                                 view_equirect)
+from probeless.pano.view import head_pose, intrinsics, look_rotation, side_by_side, stereo_eye_poses, view_equirect
 
 
 def pixel_rays(K, rotation, width, height):

@@ -5,11 +5,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from probeless.geom.cube import sample_cubemap, texel_direction
 
 from probeless.errors import SceneError
-from probeless.scene.geometry import AreaLight, SceneGeometry, Surface
+from probeless.geom.cube import sample_cubemap, texel_direction
 from probeless.gl.context import create_context
+from probeless.scene.geometry import AreaLight, SceneGeometry, Surface
 from probeless.scene.render import SHADOW_OFFSET_M, SceneRenderer
 
 pytestmark = pytest.mark.timeout(120)

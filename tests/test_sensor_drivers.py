@@ -13,7 +13,8 @@ import pytest
 
 from probeless.datasets.capture import capture_frames, open_capture
 from probeless.datasets.fisheye import fisheye_frames, open_fisheye
-from probeless.datasets.framethread import FrameThread, drain as drain_frames
+from probeless.datasets.framethread import FrameThread
+from probeless.datasets.framethread import drain as drain_frames
 from probeless.datasets.playback import drain
 from probeless.errors import DatasetError, DeviceError
 from probeless.nodes.sensors.fisheye_player import FisheyePlayer

@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 import yaml
 from scipy.spatial.transform import Rotation
+from test_scene_spec import BASE
 
 from probeless.datasets.detect import open_rgbd, select
-from probeless.errors import ProbelessError
 from probeless.datasets.stream import rgbd_groups
+from probeless.errors import ProbelessError
 from probeless.messages.header import Header
 from probeless.nodes.tracking.slam import DenseSlamNode
 from probeless.runtime.testing import run_node
@@ -27,8 +28,6 @@ from probeless.tracking.slam_input import prepare_frame
 from probeless.tracking.slam_math import predict_pose
 from probeless.tracking.sources import rgbd_samples
 from probeless.tracking.tum import read_tum, write_tum
-
-from test_scene_spec import BASE
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "rgbd"
 SEVEN = DATA / "sevenscenes_kinect_0000-0399"
@@ -181,7 +180,8 @@ def _failing(odometry, mode: str):
 
     def track(*args):
         if mode == "singular":
-            raise RuntimeError("\x1b[1;31m[Open3D Error] (void DecodeAndSolve6x6(...)) /x/TransformationConverter.cpp:220: "
+            raise RuntimeError("\x1b[1;31m[Open3D Error] (void DecodeAndSolve6x6(...)) "
+                               "/x/TransformationConverter.cpp:220: "
                                "Singular 6x6 linear system detected, tracking failed.\n\x1b[0;m")
         result = odometry(*args)
         return argparse.Namespace(transformation=result.transformation * float("nan"), fitness=result.fitness)
@@ -234,7 +234,8 @@ def test_tum_file_round_trip_and_format(tmp_path):
         T[:3, :3] = Rotation.from_rotvec(rng.normal(size=3)).as_matrix()
         T[:3, 3] = rng.normal(size=3)
         poses.append(T)
-    stamps = [1_305_031_102_175_304_123, 1_305_031_102_208_000_000, 1_305_031_102_241_000_001, 1_305_031_102_274_000_000]
+    stamps = [1_305_031_102_175_304_123, 1_305_031_102_208_000_000, 1_305_031_102_241_000_001,
+              1_305_031_102_274_000_000]
     path = write_tum(tmp_path / "traj.txt", stamps, [poses[0], None, poses[2], poses[3]])
     lines = path.read_text().splitlines()
     assert lines[0].startswith("#")

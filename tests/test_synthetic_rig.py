@@ -11,18 +11,17 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from test_scene_spec import BASE
 
 from probeless.bag.reader import BagReader
 from probeless.cli import main as cli
-from probeless.geom.cube import sample_cubemap
-from probeless.runtime.testing import RecordingContext
-from probeless.runtime.params import load_params
-from probeless.scene.parse import load_scene
 from probeless.color import linear_to_srgb
+from probeless.geom.cube import sample_cubemap
+from probeless.runtime.params import load_params
+from probeless.runtime.testing import RecordingContext
+from probeless.scene.parse import load_scene
 from probeless.scene.rig import FISHEYE_FRAME, RGBD_FRAME, FrameEvent, Rig, expose, frame_schedule
 from probeless.wire import decode
-
-from test_scene_spec import BASE
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -85,7 +84,8 @@ def test_fisheye_sees_the_light_where_cv2_omnidir_projects_it(rig):
     fisheye_from_world = np.linalg.inv(world_from_fisheye)
     rvec, _ = cv2.Rodrigues(fisheye_from_world[:3, :3])
     px, _ = cv2.omnidir.projectPoints(centre.reshape(1, 1, 3), rvec, fisheye_from_world[:3, 3],
-                                      info.K, float(info.xi), info.D.reshape(1, -1) if len(info.D) else np.zeros((1, 4)))
+                                      info.K, float(info.xi),
+                                      info.D.reshape(1, -1) if len(info.D) else np.zeros((1, 4)))
     u, v = np.round(px.reshape(2)).astype(int)
     assert 0 <= u < image.shape[1] and 0 <= v < image.shape[0]
     assert image[v, u].min() >= 250  # the lit panel (radiance 20) saturates the LDR camera
@@ -195,7 +195,8 @@ def test_scene_render_writes_a_replayable_bag(tmp_path, capsys):
 
 def test_scene_preview_writes_a_sheet(tmp_path):
     out = tmp_path / "sheet.png"
-    assert cli(["scene", "preview", str(small_scene(tmp_path)), "--t", "0.5", "-o", str(out), "--envmap-size", "16"]) == 0
+    assert cli(["scene", "preview", str(small_scene(tmp_path)), "--t", "0.5", "-o", str(out),
+                "--envmap-size", "16"]) == 0
     sheet = cv2.imread(str(out))
     assert sheet is not None and sheet.shape[0] > 900 and sheet.std() > 10
     assert cli(["scene", "preview", str(small_scene(tmp_path)), "--t", "99", "-o", str(out)]) == 2

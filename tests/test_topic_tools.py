@@ -19,9 +19,20 @@ import numpy as np
 import pytest
 
 from probeless.messages import Header, Image, InputCounters, NodeStatus
-from probeless.topics import (RateStats, RunningGraph, TopicReader, format_message, graph_topics, hz,
-                              running_graphs, select_graph, summarize_array, topic_info, topic_main,
-                              wait_for_start)
+from probeless.topics import (
+    RateStats,
+    RunningGraph,
+    TopicReader,
+    format_message,
+    graph_topics,
+    hz,
+    running_graphs,
+    select_graph,
+    summarize_array,
+    topic_info,
+    topic_main,
+    wait_for_start,
+)
 
 TESTS = Path(__file__).parent
 

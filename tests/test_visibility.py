@@ -16,13 +16,13 @@ from probeless.coarse.visibility import (
 )
 from probeless.errors import GeometryError, ProbelessError
 from probeless.geom.floorplan import check_floorplan
-from probeless.scene.parse import load_scene
 from probeless.geom.polygon import (
     contains,
     distance_to_boundary,
     self_intersection,
     signed_area,
 )
+from probeless.scene.parse import load_scene
 
 SCENES = Path(__file__).resolve().parents[1] / "launch" / "scenes"
 L_ROOM = np.array([[0, 0], [6, 0], [6, 3], [3, 3], [3, 5], [0, 5]], float)

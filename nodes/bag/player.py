@@ -63,7 +63,8 @@ class BagPlayer(Node):
         if self.reader.truncated:
             self.ctx.log.warning("%s: %s", p.path, self.reader.truncation_note)
         recorded = self.reader.topics()
-        check_schemas(p.path, {t: (i.type_name, i.version) for t, i in recorded.items() if not p.topics or t in p.topics})
+        check_schemas(p.path, {t: (i.type_name, i.version) for t, i in recorded.items()
+                               if not p.topics or t in p.topics})
         missing = [t for t in p.topics if t not in recorded]
         if missing:
             raise ParamError(f"{p.path}: no topic(s) {missing} in the recording (has: {sorted(recorded)})",

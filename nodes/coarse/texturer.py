@@ -95,7 +95,8 @@ class CoarseTexturer(Node):
         self.ctx.log.info("atlas %dx%d at %.1f texels/m for a %d-wall room", lay.width, lay.height,
                           lay.texels_per_m, len(lay.walls))
         v, t, uv, _ = coarse_mesh(lay)
-        self.ctx.publish("mesh", TriangleMesh(Header(msg.header.stamp_ns, msg.header.frame_id or "world"), v, t, uvs=uv))
+        self.ctx.publish("mesh", TriangleMesh(Header(msg.header.stamp_ns, msg.header.frame_id or "world"),
+                                              v, t, uvs=uv))
 
     def _unmatched(self, name: str, msg, reason: str) -> None:
         self.counts[f"unpaired_{name}:{reason}"] += 1

@@ -12,7 +12,6 @@ import numpy as np
 from probeless.messages.sensor import Image
 from probeless.runtime import Node, param
 
-
 MAX_LATENCY_MS = 86_400_000.0  # a "latency" beyond a day means the stamps are not on this clock (scene time)
 
 

@@ -21,9 +21,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from probeless.cameras import model_from_info
+from probeless.color import srgb_to_linear
 from probeless.envmap.baseline import BaselineMap
-from probeless.envmap.objects import (move_object, object_ids_problem, object_positions_problem,
-                                       parse_objects, write_nets)
+from probeless.envmap.objects import (
+    move_object,
+    object_ids_problem,
+    object_positions_problem,
+    parse_objects,
+    write_nets,
+)
 from probeless.envmap.sh import project_cubemap
 from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.header import Header
@@ -32,7 +38,6 @@ from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ExactTimeSync
-from probeless.color import srgb_to_linear
 
 
 def _encode(faces: np.ndarray, dtype: str) -> np.ndarray:

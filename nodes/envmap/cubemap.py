@@ -24,6 +24,19 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
+
+from probeless.coarse.model import CoarseConfig, make_layout
+from probeless.color import linear_to_srgb, srgb_to_linear
+from probeless.envmap.cubemap import EnvmapRenderer, prefilter
+from probeless.envmap.objects import (
+    move_object,
+    object_ids_problem,
+    object_positions_problem,
+    parse_objects,
+    write_nets,
+)
+from probeless.envmap.sh import project_cubemap
+from probeless.errors import ProbelessError
 from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.header import Header
 from probeless.messages.lighting import (
@@ -34,15 +47,7 @@ from probeless.messages.lighting import (
 )
 from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
-
-from probeless.coarse.model import CoarseConfig, make_layout
-from probeless.envmap.cubemap import EnvmapRenderer, prefilter
-from probeless.envmap.objects import (move_object, object_ids_problem, object_positions_problem,
-                                       parse_objects, write_nets)
-from probeless.envmap.sh import project_cubemap
-from probeless.errors import ProbelessError
 from probeless.runtime import Node, param
-from probeless.color import linear_to_srgb, srgb_to_linear
 
 
 def to_ldr(colors: np.ndarray) -> np.ndarray:
@@ -58,7 +63,8 @@ def _mip_problem(face_size: int, p) -> str | None:
 
 
 class CubemapRenderer(Node):
-    """``floorplan`` + ``atlas`` (+ ``points`` | ``dense_mesh``, ``delta``, ``object_poses``) -> ``envmap/*``, ``sh/*``."""
+    """``floorplan`` + ``atlas`` (+ ``points`` | ``dense_mesh``, ``delta``, ``object_poses``)
+    -> ``envmap/*``, ``sh/*``."""
 
     INPUTS = {"floorplan": Floorplan, "atlas": Image, "points": PointCloud, "dense_mesh": TriangleMesh,
               "delta": BrightnessDelta, "object_poses": PoseStamped,
@@ -71,15 +77,18 @@ class CubemapRenderer(Node):
     class Params:
         atlas_size: int = param(0, min=0, max=16384, doc="atlas side when texels_per_m is 0 [texels] (as the "
                                                          "texturer's); 0 = the width of the atlas images received")
-        texels_per_m: float = param(0.0, min=0.0, max=10000.0, doc="texel density; 0 = fit atlas_size [texels/m] (as the texturer's)")
+        texels_per_m: float = param(0.0, min=0.0, max=10000.0,
+                                    doc="texel density; 0 = fit atlas_size [texels/m] (as the texturer's)")
         object_ids: tuple[str, ...] = param((), check=object_ids_problem,
                                             doc="virtual objects to render an environment map for")
         object_positions: tuple[tuple[float, ...], ...] = param((), check=object_positions_problem,
                                                                 doc="[x, y, z] per object id [m, world]")
         face_size: int = param(256, min=4, max=4096, check=_mip_problem,
                                doc="cube face side [texels]; divisible by 2^(mip_levels-1)")
-        dense: bool = param(True, doc="render the dense model on top of the coarse one (false: the 'no dense' ablation)")
-        splat_m: float = param(0.02, min=0.0, max=1.0, doc="world diameter of a point splat, about the point spacing [m]")
+        dense: bool = param(True,
+                            doc="render the dense model on top of the coarse one (false: the 'no dense' ablation)")
+        splat_m: float = param(0.02, min=0.0, max=1.0,
+                               doc="world diameter of a point splat, about the point spacing [m]")
         max_splat_px: float = param(64.0, min=1.0, max=255.0, doc="largest splat [px]")
         draw_objects: bool = param(False, doc="draw the other virtual objects as flat spheres into each map")
         object_radius: float = param(0.1, min=0.0, max=10.0, doc="sphere radius of other objects [m]")

@@ -22,15 +22,15 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from probeless.messages.geometry import PoseStamped
-from probeless.messages.lighting import Cubemap, SHCoefficients
-from probeless.messages.sensor import CameraInfo, DepthImage, Image
 
 from probeless.errors import ParamError, SchemaError
 from probeless.ibl.composite import composite
 from probeless.ibl.lighting import lighting_from_messages
 from probeless.ibl.objects import object_from_dict, objects_problem
 from probeless.ibl.render import IblRenderer
+from probeless.messages.geometry import PoseStamped
+from probeless.messages.lighting import Cubemap, SHCoefficients
+from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ExactTimeSync
 

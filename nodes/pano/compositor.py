@@ -21,16 +21,17 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from probeless.messages.sensor import Image
 
 from probeless.errors import SchemaError
 from probeless.ibl.objects import object_from_dict, objects_problem
+from probeless.messages.sensor import Image
 from probeless.pano.composite import DISPLAY, DISPLAY_FOR_OPERATOR, render_view
 from probeless.pano.objects import DEFAULT_OBJECTS, MONO_SIZE, resolve_mesh
 from probeless.pano.render import PanoRenderer
 from probeless.pano.view import HMD_EYE_SIZE, head_pose, view_equirect
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ExactTimeSync
+
 
 class PanoCompositor(Node):
     """``image`` + ``hdr`` + ``diffuse`` (same stamp) -> composited ``image`` (see the module docstring)."""

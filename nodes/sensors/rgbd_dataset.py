@@ -14,7 +14,6 @@ rest of the graph for the CPU (benchmarks; mind the memory: ~1.5 MB per 640x480 
 from __future__ import annotations
 
 from dataclasses import dataclass
-
 from pathlib import Path
 
 from probeless.datasets.detect import detect_format, open_rgbd, select
@@ -56,7 +55,8 @@ def _intrinsics_problem(key: str):
     def check(value, p) -> str | None:
         given = [k for k in INTRINSICS if getattr(p, k) is not None]
         if given and len(given) < 4 and given[0] == key:
-            return f"intrinsics override needs all of fx, fy, cx, cy; missing {[k for k in INTRINSICS if k not in given]}"
+            return ("intrinsics override needs all of fx, fy, cx, cy; "
+                    f"missing {[k for k in INTRINSICS if k not in given]}")
         return None
     return check
 
@@ -82,7 +82,8 @@ class RgbdDatasetPlayer(Node):
         depth_scale: float = param(0.0, min=0.0, doc="depth units per metre; 0 = the format's")
         trajectory: str = param("", check=_trajectory_problem, doc="Redwood: .log file of poses (relative to the "
                                 "dataset folder); empty = auto (groundtruth*.log preferred)")
-        fx: float | None = param(None, check=_intrinsics_problem("fx"), doc="focal length override [px] (with fy, cx, cy)")
+        fx: float | None = param(None, check=_intrinsics_problem("fx"),
+                                 doc="focal length override [px] (with fy, cx, cy)")
         fy: float | None = param(None, check=_intrinsics_problem("fy"), doc="focal length override [px]")
         cx: float | None = param(None, check=_intrinsics_problem("cx"), doc="principal point override [px]")
         cy: float | None = param(None, check=_intrinsics_problem("cy"), doc="principal point override [px]")

@@ -9,12 +9,10 @@ from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.header import shift_stamp
 from probeless.messages.lighting import Cubemap
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
-
 from probeless.runtime import Node, param
 from probeless.runtime.pacing import Pacer
 from probeless.scene.parse import load_scene
 from probeless.scene.rig import Rig, frame_schedule
-
 
 
 class SyntheticRig(Node):
@@ -37,15 +35,18 @@ class SyntheticRig(Node):
         scene: str = param(path="file", must_exist=True,
                            doc="scene file (.yaml), relative to the working folder; use $(dirname) for paths "
                                "relative to the graph")
-        rate: float = param(1.0, min=0.0, max=100.0, doc="speed factor against scene time; 0 = lockstep, as fast as the graph consumes")
+        rate: float = param(1.0, min=0.0, max=100.0,
+                            doc="speed factor against scene time; 0 = lockstep, as fast as the graph consumes")
         duration_s: float = param(0.0, min=0.0, doc="render this much scene time [s]; 0 = the whole trajectory")
         loop: bool = param(False, doc="start again at the end")
         envmaps: bool = param(True, doc="publish ground-truth cubemaps for every virtual object and fisheye frame")
         envmap_size: int = param(64, min=4, max=2048, doc="ground-truth cubemap face size [texels]")
-        fisheye_cube_size: int = param(512, min=16, max=4096, doc="cubemap resolution behind the fisheye image [texels]")
+        fisheye_cube_size: int = param(512, min=16, max=4096,
+                                       doc="cubemap resolution behind the fisheye image [texels]")
         seed: int = param(0, min=0, doc="depth-noise seed")
         stamps: str = param("scene", choices=("scene", "wall"),
-                            doc="scene = scene time from 0 (reproducible); wall = the node clock when the frame is rendered, like a live camera's host stamps")
+                            doc="scene = scene time from 0 (reproducible); wall = the node clock when the frame is "
+                                "rendered, like a live camera's host stamps")
         max_lag_s: float = param(0.05, min=0.0, doc="lag beyond which the schedule shifts [s]")
 
     def setup(self) -> None:
@@ -62,7 +63,8 @@ class SyntheticRig(Node):
         self.timer = self.ctx.create_timer(0.002, self._step, name="render")
 
     def _step(self) -> None:
-        if not self.floorplan_sent:  # from the first timer tick: after the readiness barrier, so no subscriber misses it
+        # from the first timer tick: after the readiness barrier, so no subscriber misses it
+        if not self.floorplan_sent:
             origin_ns = self.ctx.now_ns() if self.params.stamps == "wall" else 0
             self.ctx.publish("floorplan", shift_stamp(self.rig.floorplan(), origin_ns))
             self.floorplan_sent = True

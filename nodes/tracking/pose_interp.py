@@ -70,7 +70,8 @@ class PoseInterp(Node):
         p = self.params
         self.rgbd_from_fisheye = invert_transform(fisheye_from_rgbd(p.translation, p.rpy_deg))
         self.poses = PoseBuffer(p.buffer_length, _ns(p.jump_back_s), _ns(p.max_gap_s))
-        self.max_extrap_ns, self.max_hold_ns, self.jump_ns = _ns(p.max_extrapolation_s), _ns(p.max_hold_s), _ns(p.jump_back_s)
+        self.max_extrap_ns, self.max_hold_ns, self.jump_ns = (_ns(p.max_extrapolation_s), _ns(p.max_hold_s),
+                                                              _ns(p.jump_back_s))
         self.held: list[Image] = []                    # sorted by stamp
         self.recent: deque[int] = deque(maxlen=p.hold_frames + 64)  # fisheye stamps seen, for duplicates
         self.newest_fisheye: int | None = None
@@ -138,7 +139,8 @@ class PoseInterp(Node):
         with self.ctx.timed("interpolate"):
             T, reason = self.poses.query(t, extrap)
         if T is not None:
-            pose = PoseStamped(Header(t, self.world_frame), img.header.frame_id or "fisheye", T @ self.rgbd_from_fisheye)
+            pose = PoseStamped(Header(t, self.world_frame), img.header.frame_id or "fisheye",
+                               T @ self.rgbd_from_fisheye)
             self.ctx.publish("fisheye_pose", pose)
             self.ctx.publish("fisheye", img)
             self.counts[f"published:{reason}"] += 1

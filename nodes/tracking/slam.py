@@ -36,19 +36,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from probeless.color import quantize8
 from probeless.messages.diagnostics import TrackingState
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
 from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
-from probeless.color import quantize8
 from probeless.nodes.tracking.slam_io import open_trajectory, pose_param, pose_problem
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ApproximateTimeSync, ExactTimeSync
 from probeless.tracking.dense import DenseSlam, SlamParams
 from probeless.tracking.slam_params import GRID_ROTATION_DEG
-from probeless.tracking.weighted_icp import KINECT_SIGMA
 from probeless.tracking.tum import write_tum_lines
+from probeless.tracking.weighted_icp import KINECT_SIGMA
 
 
 def _sigma_problem(v: tuple[float, ...]) -> str | None:
@@ -244,7 +244,8 @@ class DenseSlamNode(Node):
             c["lost" if r.state == "lost" else "invalid"] += 1
             c["consecutive"] += 1
             if c["consecutive"] % LOG_EVERY == 1:  # the first failure, then every LOG_EVERY-th
-                self.ctx.log.warning("frame %d: %s (%s); %d failed in a row", stamp, r.state, r.reason, c["consecutive"])
+                self.ctx.log.warning("frame %d: %s (%s); %d failed in a row", stamp, r.state, r.reason,
+                                     c["consecutive"])
         self._publish_state(rgb.header, r.state, r.reason, r.fitness, step_ms)
 
     def _publish_state(self, header: Header, state: str, reason: str, fitness: float, step_ms: float) -> None:

@@ -144,7 +144,8 @@ def _obj(title: str | None = None, **props: Any) -> dict[str, Any]:
     return out
 
 
-_TIME = _obj("time", sec={"type": "integer", "minimum": 0}, nsec={"type": "integer", "minimum": 0, "maximum": 999999999})
+_TIME = _obj("time", sec={"type": "integer", "minimum": 0},
+             nsec={"type": "integer", "minimum": 0, "maximum": 999999999})
 _VEC3 = _obj("foxglove.Vector3", x=_NUM, y=_NUM, z=_NUM)
 _POSE = _obj("foxglove.Pose", position=_VEC3, orientation=_obj("foxglove.Quaternion", x=_NUM, y=_NUM, z=_NUM, w=_NUM))
 _COLOR = _obj("foxglove.Color", r=_NUM, g=_NUM, b=_NUM, a=_NUM)
@@ -160,7 +161,8 @@ SCHEMAS: dict[str, dict[str, Any]] = {
                                                                        offset=_INT, type=_INT)},
                                 data=_BYTES),
     "foxglove.SceneUpdate": _obj("foxglove.SceneUpdate", deletions=_LIST, entities={"type": "array", "items": _obj(
-        "foxglove.SceneEntity", timestamp=_TIME, frame_id=_STR, id=_STR, lifetime=_TIME, frame_locked={"type": "boolean"},
+        "foxglove.SceneEntity", timestamp=_TIME, frame_id=_STR, id=_STR, lifetime=_TIME,
+        frame_locked={"type": "boolean"},
         metadata=_LIST, arrows=_LIST, cubes=_LIST, spheres=_LIST, cylinders=_LIST, lines=_LIST, texts=_LIST,
         models=_LIST, triangles={"type": "array", "items": _obj(
             "foxglove.TriangleListPrimitive", pose=_POSE, points={"type": "array", "items": _VEC3}, color=_COLOR,

@@ -119,7 +119,8 @@ def format_info(report: dict[str, Any]) -> str:
         for nid, n in g["nodes"].items():
             lines.append(f"    {nid}: {n['node']} {json.dumps(n['params'], sort_keys=True)}")
     for name, data in sorted(report["metadata"].items()):
-        shown = {k: v if len(v) <= 200 else f"{v[:80]!s}... ({len(v)} chars; --json shows all)" for k, v in data.items()}
+        shown = {k: v if len(v) <= 200 else f"{v[:80]!s}... ({len(v)} chars; --json shows all)"
+                 for k, v in data.items()}
         lines.append(f"metadata {name}: {json.dumps(shown, sort_keys=True)}")
     return "\n".join(lines)
 

@@ -22,8 +22,18 @@ from typing import Any, BinaryIO, Mapping, Sequence
 
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import (Channel, DataEnd, Footer, Header, McapRecord, Metadata, MetadataIndex, Schema,
-                          Statistics, SummaryOffset)
+from mcap.records import (
+    Channel,
+    DataEnd,
+    Footer,
+    Header,
+    McapRecord,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
 from mcap.writer import MCAP0_MAGIC
 
 from probeless.bag.chunks import COMPRESSIONS, ChunkBuffer, encode_chunk

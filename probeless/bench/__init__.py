@@ -1,8 +1,9 @@
 """Benchmarks: ``probeless bench NAME [--json] [--quick] [its own options]``, or ``python -m probeless.bench.NAME``.
 
 ``BENCHMARKS`` maps each benchmark's name to its module and a one-line help. Every benchmark module
-exposes ``add_arguments(parser)`` (its own options; ``--json`` and ``--quick`` come from
-:func:`probeless.bench.common.add_common_arguments`) and ``run(ns) -> int``. Benchmarks launch
+exposes ``main(json_out, quick)``, and where it has options of its own ``add_arguments(parser)``
+(``--json`` and ``--quick`` come from :func:`probeless.bench.common.add_common_arguments`) and
+``run(ns) -> int``. Benchmarks launch
 graphs of registered node types (the benchmark nodes are in ``probeless.nodes.bench``); they never
 import ``probeless.nodes``. Importing this package is cheap: modules are imported when run.
 """

@@ -11,7 +11,7 @@ import importlib
 from types import ModuleType
 
 from probeless.bench import BENCHMARKS
-from probeless.bench.common import add_common_arguments
+from probeless.bench.common import add_common_arguments, add_own_arguments, run_benchmark
 
 
 class _BenchmarkParser(argparse.ArgumentParser):
@@ -25,7 +25,7 @@ class _BenchmarkParser(argparse.ArgumentParser):
         if self._bench_module is not None:
             module, self._bench_module = importlib.import_module(self._bench_module), None
             add_common_arguments(self)
-            module.add_arguments(self)
+            add_own_arguments(module, self)
 
     def parse_known_args(self, args=None, namespace=None):
         self._load()
@@ -50,7 +50,7 @@ def build_benchmark_parser(module_name: str, prog: str | None = None) -> tuple[a
     helps = {m: h for m, h in BENCHMARKS.values()}
     parser = argparse.ArgumentParser(prog=prog, description=helps.get(module_name, module.__doc__))
     add_common_arguments(parser)
-    module.add_arguments(parser)
+    add_own_arguments(module, parser)
     return parser, module
 
 
@@ -67,7 +67,7 @@ def cmd_bench(ns: argparse.Namespace) -> int:
     if ns.what is None:
         print(list_benchmarks())
         return 0
-    return _module_of(ns.what).run(ns)
+    return run_benchmark(_module_of(ns.what), ns)
 
 
 def add_bench_parser(sub) -> argparse.ArgumentParser:

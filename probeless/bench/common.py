@@ -48,4 +48,19 @@ def module_main(module_name: str, argv: list[str] | None = None) -> int:
     from probeless.bench.cli import build_benchmark_parser
 
     parser, module = build_benchmark_parser(module_name, prog=f"python -m {module_name}")
-    return module.run(parser.parse_args(argv))
+    return run_benchmark(module, parser.parse_args(argv))
+
+
+def run_benchmark(module, ns) -> int:
+    """Run a benchmark module on parsed options: its ``run(ns)``, or by default ``main(json_out, quick)``."""
+    run = getattr(module, "run", None)
+    if run is not None:
+        return run(ns)
+    return module.main(json_out=ns.json, quick=ns.quick)
+
+
+def add_own_arguments(module, parser) -> None:
+    """The benchmark's own options (its ``add_arguments``, when it has any)."""
+    add = getattr(module, "add_arguments", None)
+    if add is not None:
+        add(parser)

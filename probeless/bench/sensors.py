@@ -84,14 +84,6 @@ def print_table(result: dict) -> None:
     print(json.dumps(result, indent=2))
 
 
-def add_arguments(parser) -> None:
-    """No options besides ``--json`` / ``--quick``."""
-
-
-def run(ns) -> int:
-    return main(json_out=ns.json, quick=ns.quick)
-
-
 if __name__ == "__main__":
     from probeless.bench.common import module_main
 

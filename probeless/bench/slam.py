@@ -268,14 +268,6 @@ def main(json_out: bool = False, quick: bool = False) -> int:
     return 0
 
 
-def add_arguments(parser) -> None:
-    """No options besides ``--json`` / ``--quick``."""
-
-
-def run(ns) -> int:
-    return main(json_out=ns.json, quick=ns.quick)
-
-
 if __name__ == "__main__":
     from probeless.bench.common import module_main
 

@@ -68,7 +68,8 @@ def _sample(sample_idx, texmap: TexelMap) -> BrightnessSample:
         return draw_sample(texmap)
     if isinstance(sample_idx, BrightnessSample):
         if sample_idx.shape != texmap.core.shape:
-            raise SchemaError(f"brightness sample drawn for a {sample_idx.shape} atlas, texel map is {texmap.core.shape}")
+            raise SchemaError(f"brightness sample drawn for a {sample_idx.shape} atlas, "
+                              f"texel map is {texmap.core.shape}")
         return sample_idx
     idx = np.asarray(sample_idx, np.int64)
     return BrightnessSample(idx, texmap.position.reshape(-1, 3)[idx], texmap.normal.reshape(-1, 3)[idx],
@@ -106,8 +107,9 @@ def estimate_delta(atlas_rgb: np.ndarray, observed: np.ndarray, texmap: TexelMap
     """(Δ (3,) float32 in 0..1 units, texels used) of a fisheye ``image`` against the atlas (module doc).
 
     ``atlas_rgb`` (H, W, 3) float32 0..1 or uint8 (a view of an RGBA atlas is fine), ``observed``
-    (H, W) bool or uint8, nonzero = observed directly (e.g. the RGBA atlas's alpha); ``sample_idx`` restricts the mean to a :class:`BrightnessSample` or flat texel
-    indices (None: all core texels). Δ is 0 and texels used 0 when no texel qualifies.
+    (H, W) bool or uint8, nonzero = observed directly (e.g. the RGBA atlas's alpha); ``sample_idx``
+    restricts the mean to a :class:`BrightnessSample` or flat texel indices (None: all core texels).
+    Δ is 0 and texels used 0 when no texel qualifies.
     GeometryError when the camera is outside a non-convex floorplan.
     """
     _check_shapes(atlas_rgb, observed, texmap)

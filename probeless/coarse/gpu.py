@@ -121,8 +121,8 @@ class AtlasTexturer:
         fisheye.use(3)
         self.tex_prog["fisheye_from_world"].write(mat_bytes(np.linalg.inv(world_from_fisheye)))
         self.tex_prog["K"].write(mat_bytes(model.K))
-        set_uniforms(self.tex_prog, positions=0, previous=1, occlusion=2, fisheye=3, xi=float(model.xi), cos_half_fov=self.cos_half_fov,
-                     image_size=(float(model.width), float(model.height)),
+        set_uniforms(self.tex_prog, positions=0, previous=1, occlusion=2, fisheye=3, xi=float(model.xi),
+                     cos_half_fov=self.cos_half_fov, image_size=(float(model.width), float(model.height)),
                      delta=tuple(float(d) for d in np.asarray(delta).reshape(3)), t_s=float(t_s))
         self.fbos[dst].use()
         self.quads[self.tex_prog].render(moderngl.TRIANGLES, vertices=3)

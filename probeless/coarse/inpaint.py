@@ -66,7 +66,8 @@ def fill_surface(img: np.ndarray, known: np.ndarray, scale: float, radius: float
 
 def _wall_bottom_colours(atlas: np.ndarray, observed: np.ndarray, texmap: TexelMap, s: AtlasSurface
                          ) -> np.ndarray | None:
-    """(w, 3) per wall column: the lowest observed texel's colour (nearest observed column where none); None if unseen."""
+    """(w, 3) per wall column: the lowest observed texel's colour (nearest observed column where none);
+    None if unseen."""
     x0, y0, w, h = s.rect
     seen = observed[y0:y0 + h, x0:x0 + w] & texmap.core[y0:y0 + h, x0:x0 + w]
     cols = np.flatnonzero(seen.any(axis=0))

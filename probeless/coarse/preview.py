@@ -19,8 +19,17 @@ import numpy as np
 from probeless.coarse.frames import open_source
 from probeless.coarse.model import CoarseConfig
 from probeless.coarse.run import run_coarse
-from probeless.coarse.view import GREEN, ORANGE, WHITE, ModelView, fisheye_lines, frustum_lines, inside_camera, \
-    overview_camera, polyline
+from probeless.coarse.view import (
+    GREEN,
+    ORANGE,
+    WHITE,
+    ModelView,
+    fisheye_lines,
+    frustum_lines,
+    inside_camera,
+    overview_camera,
+    polyline,
+)
 from probeless.coarse.visibility import visibility_polygon
 from probeless.scene.preview import contact_sheet, write_png
 

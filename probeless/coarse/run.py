@@ -33,7 +33,8 @@ class FrameRecord:
 
 def run_coarse(source: FrameSource, config: CoarseConfig, *, use_delta: bool = True, samples: int = 65536,
                on_frame: Callable[[CoarseModel, FisheyeFrame, FrameRecord], None] | None = None,
-               deadband: float = DEADBAND, show_progress: bool = True, model: CoarseModel | None = None) -> tuple[CoarseModel, list[FrameRecord]]:
+               deadband: float = DEADBAND, show_progress: bool = True,
+               model: CoarseModel | None = None) -> tuple[CoarseModel, list[FrameRecord]]:
     """Texture the room from every frame of ``source``; ``on_frame`` sees the model after each one."""
     ctx = source.rig.renderer.ctx if source.rig is not None else None
     model = model or CoarseModel(source.floorplan, source.ceiling_height, config, ctx=ctx)

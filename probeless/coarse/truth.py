@@ -13,7 +13,8 @@ import numpy as np
 from probeless.coarse.atlas import AtlasLayout, AtlasSurface
 from probeless.color import linear_to_srgb
 
-STANDOFF_M = 0.02  # camera distance from the surface: surface-mounted windows (2 mm) and ceiling panels (1 cm) count as the surface
+# camera distance from the surface: surface-mounted windows (2 mm) and ceiling panels (1 cm) count as the surface
+STANDOFF_M = 0.02
 
 
 def ortho_clip_from_world(layout: AtlasLayout, s: AtlasSurface, far: float) -> tuple[np.ndarray, np.ndarray]:

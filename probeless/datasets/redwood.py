@@ -18,10 +18,22 @@ from pathlib import Path
 
 import numpy as np
 
-from probeless.datasets.base import (Intrinsics, RgbdFrame, RgbdSequence, check_intrinsics, image_size, list_images,
-                                     orthonormalize)
-from probeless.datasets.textfiles import (IntrinsicsOverride, data_lines, find_intrinsics_json, parse_floats,
-                                          read_open3d_intrinsics)
+from probeless.datasets.base import (
+    Intrinsics,
+    RgbdFrame,
+    RgbdSequence,
+    check_intrinsics,
+    image_size,
+    list_images,
+    orthonormalize,
+)
+from probeless.datasets.textfiles import (
+    IntrinsicsOverride,
+    data_lines,
+    find_intrinsics_json,
+    parse_floats,
+    read_open3d_intrinsics,
+)
 from probeless.errors import DatasetError
 
 COLOR_DIRS = ("image", "color", "rgb")

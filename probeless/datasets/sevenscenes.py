@@ -11,8 +11,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from probeless.datasets.base import (Intrinsics, RgbdFrame, RgbdSequence, check_intrinsics, image_size,
-                                     orthonormalize)
+from probeless.datasets.base import Intrinsics, RgbdFrame, RgbdSequence, check_intrinsics, image_size, orthonormalize
 from probeless.datasets.textfiles import IntrinsicsOverride, read_matrix
 from probeless.errors import DatasetError
 

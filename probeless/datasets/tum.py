@@ -20,8 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from probeless.datasets.base import Intrinsics, RgbdFrame, RgbdSequence, check_intrinsics, image_size, median_rate
-from probeless.datasets.textfiles import (IntrinsicsOverride, data_lines, find_intrinsics_json, parse_floats,
-                                          parse_stamp_ns, read_open3d_intrinsics)
+from probeless.datasets.textfiles import (
+    IntrinsicsOverride,
+    data_lines,
+    find_intrinsics_json,
+    parse_floats,
+    parse_stamp_ns,
+    read_open3d_intrinsics,
+)
 from probeless.errors import DatasetError
 from probeless.geom.rotation import matrix_from_quat, quat_from_matrix, slerp, transform_from
 

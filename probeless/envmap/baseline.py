@@ -19,8 +19,8 @@ import numpy as np
 from probeless.cameras.base import CameraModel
 from probeless.coarse.project import project_columns, sample_columns
 from probeless.errors import ProbelessError, SchemaError
-from probeless.messages.header import Header
 from probeless.geom.cube import cube_directions
+from probeless.messages.header import Header
 from probeless.messages.lighting import Cubemap
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from probeless.coarse.brightness import apply_deadband, draw_sample, estimate_delta
 from probeless.coarse.frames import FOV_MARGIN_DEG, runtime_model
 from probeless.coarse.model import CoarseConfig, CoarseModel
+from probeless.color import linear_to_srgb, srgb_to_linear
 from probeless.envmap import metrics as M
 from probeless.envmap.baseline import BaselineMap
 from probeless.envmap.cubemap import EnvmapRenderer
@@ -25,7 +26,6 @@ from probeless.envmap.dense_points import DensePoints
 from probeless.envmap.methods import METHODS, METRICS, VARIANT
 from probeless.envmap.sh import project_cubemap
 from probeless.progress import progress
-from probeless.color import linear_to_srgb, srgb_to_linear
 
 
 @dataclass

@@ -18,9 +18,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from probeless.color import linear_to_srgb, srgb_to_linear
 from probeless.errors import ProbelessError
 from probeless.geom.cube import cube_directions, cube_solid_angles, sample_cubemap
-from probeless.color import linear_to_srgb, srgb_to_linear
 
 SSIM_SIGMA, SSIM_RADIUS, SSIM_K1, SSIM_K2 = 1.5, 5, 0.01, 0.03  # Wang et al. 2004: 11x11 Gaussian window
 VIEW, RIGHT, UP = np.array([-1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0])
@@ -116,7 +116,8 @@ def render_mirror_sphere(faces: np.ndarray, size: int) -> tuple[np.ndarray, np.n
 
 
 def downsample_faces(faces: np.ndarray, max_size: int) -> np.ndarray:
-    """Faces box-averaged by 2x2 blocks until at most ``max_size`` texels wide (each block weighted by its solid angle)."""
+    """Faces box-averaged by 2x2 blocks until at most ``max_size`` texels wide
+    (each block weighted by its solid angle)."""
     f = np.asarray(faces, np.float64)
     while f.shape[1] > max_size and f.shape[1] % 2 == 0:
         s = f.shape[1]

@@ -1,4 +1,5 @@
-"""2-D polygon predicates for floorplans (vertices (N, 2), not closed); the validator: :mod:`probeless.geom.floorplan`."""
+"""2-D polygon predicates for floorplans (vertices (N, 2), not closed);
+the validator: :mod:`probeless.geom.floorplan`."""
 
 from __future__ import annotations
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from probeless.color import srgb_to_linear
 from probeless.envmap.sh import project_cubemap
 from probeless.errors import SchemaError
 from probeless.messages.lighting import Cubemap, SHCoefficients
-from probeless.color import srgb_to_linear
 
 
 @dataclass(frozen=True)

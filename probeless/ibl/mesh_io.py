@@ -40,7 +40,8 @@ def uv_sphere(radius: float = 1.0, rings: int = 48, segments: int = 96) -> tuple
     ring = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
     verts = np.vstack([[0, 0, 1], ring, [0, 0, -1]]) * radius
     south = len(verts) - 1
-    idx = lambda r, s: 1 + r * segments + (s % segments)
+    def idx(r, s):
+        return 1 + r * segments + (s % segments)
     tris = [(0, idx(0, s), idx(0, s + 1)) for s in range(segments)]
     for r in range(rings - 2):
         for s in range(segments):

@@ -168,7 +168,8 @@ class IblRenderer:
             s = g.shade
             (g.glossy or g.env).use(1)
             g.env.use(0)
-            set_uniforms(p, env=0, glossy=1, glossy_lod=float(g.glossy_lod), camera_position=tuple(world_from_camera[:3, 3]),
+            set_uniforms(p, env=0, glossy=1, glossy_lod=float(g.glossy_lod),
+                         camera_position=tuple(world_from_camera[:3, 3]),
                          kd=tuple(s.kd), ks=tuple(s.ks), kt=tuple(s.kt), ior=float(s.ior),
                          use_prt=g.prt is not None, exposure=float(self.exposure))
             if "sh_irr" in p:

@@ -7,8 +7,8 @@ its default input size) and the SH9 map against the exact per-texel convolution 
 every texel, with max and mean relative error. The exact maps come from :func:`exact_diffuse` (the
 brute-force sum, evaluated by FFT; checked against :func:`~probeless.pano.diffuse.diffuse_map_bruteforce`
 in the tests); the paper's one-texel-at-a-time construction is timed on ``probe_texels`` texels and
-scaled up to the whole map, its per-frame setup counted once (``paper_bruteforce_s``). GPU times are those of the GL renderer named in
-the result (Mesa llvmpipe on a CPU-only machine: not a GPU's figures).
+scaled up to the whole map, its per-frame setup counted once (``paper_bruteforce_s``). GPU times are
+those of the GL renderer named in the result (Mesa llvmpipe on a CPU-only machine: not a GPU's figures).
 """
 
 from __future__ import annotations
@@ -19,8 +19,14 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from probeless.pano.diffuse import (IN_SIZES, MAX_WEIGHTS, bruteforce_inputs, bruteforce_texels, diffuse_map,
-                                    sh9_irradiance_map)
+from probeless.pano.diffuse import (
+    IN_SIZES,
+    MAX_WEIGHTS,
+    bruteforce_inputs,
+    bruteforce_texels,
+    diffuse_map,
+    sh9_irradiance_map,
+)
 from probeless.pano.equirect import check_equirect, pixel_directions, solid_angles
 from probeless.pano.sources import default_panoramas, read_panorama
 from probeless.progress import progress
@@ -116,8 +122,8 @@ def evaluate_diffuse(panoramas: Sequence[str | Path] | None = None, sizes: Seque
     """Per panorama and size: errors of the GPU map (``gpu``: sub-texel weights as matmul;
     ``gpu_moments``: radiance moments), matmul and SH9 against the exact full-resolution map, and
     timings (see the module docstring); ``summary`` has the worst max and the mean mean error."""
-    from probeless.pano.gpu_diffuse import GpuDiffuse
     from probeless.gl.context import create_context
+    from probeless.pano.gpu_diffuse import GpuDiffuse
 
     paths = [Path(p) for p in (panoramas or default_panoramas())]
     ctx = create_context()

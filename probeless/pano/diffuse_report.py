@@ -11,9 +11,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from probeless.color import linear_to_srgb
 from probeless.pano.diffuse_eval import METHODS, exact_diffuse
 from probeless.pano.sources import read_panorama
-from probeless.color import linear_to_srgb
 
 
 def tonemap(x: np.ndarray, exposure: float) -> np.ndarray:

@@ -10,8 +10,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from probeless.pano import itmo
 from probeless.color import from_srgb8
+from probeless.pano import itmo
 
 
 def expand_cpu(rgb8: np.ndarray, operator: str, *, linearize: bool = True, decode_gamma: float = 2.2,

@@ -91,7 +91,8 @@ def evaluate_glossy(panoramas: list[str] | None = None, roughness=ROUGHNESS, n_d
     dirs = random_directions(n_dirs, seed)
     lod_biases = (0.0,) + tuple(float(b) for b in lod_biases if b != 0.0)  # "ring" is always the paper's rule
     res: dict[str, Any] = {"settings": {"n_dirs": int(n_dirs), "mc_samples": int(mc_samples), "seed": int(seed),
-                                        "ring_samples": int(ring_pattern(0.1, 8).weights.size), "lod_biases": list(lod_biases),
+                                        "ring_samples": int(ring_pattern(0.1, 8).weights.size),
+                                        "lod_biases": list(lod_biases),
                                         "metric": "|Y(est) - Y(ref)| / mean Y(ref) per direction, "
                                                   "Y = 0.3 R + 0.59 G + 0.11 B"}, "panoramas": {}}
     with progress(len(paths) * len(rough), "glossy vs MC", enabled=show_progress) as tick:

@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import Any
 
 
-
 def _pct(err: dict[str, float]) -> str:
     return f"{100 * err['mean']:.2f}/{100 * err['max']:.1f}"
 

@@ -12,9 +12,19 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from probeless.pano.itmo_maps import (EXPOSURE_PERCENTILE, EXPOSURE_TARGET, MAPS, SphereLighting, SphereSetup,
-                                      camera_exposure, ldr_stats, lighting_maps, load_case, make_ldr,
-                                      render_spheres)
+from probeless.pano.itmo_maps import (
+    EXPOSURE_PERCENTILE,
+    EXPOSURE_TARGET,
+    MAPS,
+    SphereLighting,
+    SphereSetup,
+    camera_exposure,
+    ldr_stats,
+    lighting_maps,
+    load_case,
+    make_ldr,
+    render_spheres,
+)
 from probeless.pano.itmo_metrics import display, image_errors, mean_errors, winners
 from probeless.pano.sources import default_panoramas
 from probeless.pano.spheres import OBJECTS, sphere_view

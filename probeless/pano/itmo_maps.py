@@ -24,12 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from probeless.color import from_srgb8
 from probeless.errors import DatasetError
 from probeless.pano import glossy
 from probeless.pano.diffuse import diffuse_map
 from probeless.pano.equirect import check_equirect, solid_angles
 from probeless.pano.itmo import apply_itmo, gamma_decode, paper_itmo
-from probeless.color import from_srgb8
 from probeless.pano.sources import read_panorama
 from probeless.pano.spheres import OBJECTS, shade, sphere_view
 from probeless.scene.rig import expose

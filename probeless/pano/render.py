@@ -16,14 +16,14 @@ import moderngl
 import numpy as np
 
 from probeless.errors import ProbelessError
-from probeless.ibl.materials import shading
-from probeless.pano import glossy
-from probeless.pano.equirect import check_equirect
-from probeless.pano.view import intrinsics
 from probeless.geom.projection import clip_from_camera
 from probeless.gl.context import create_context, current_context
 from probeless.gl.programs import load_program, mat_bytes, set_uniforms
 from probeless.gl.textures import upload_texture
+from probeless.ibl.materials import shading
+from probeless.pano import glossy
+from probeless.pano.equirect import check_equirect
+from probeless.pano.view import intrinsics
 
 SHADERS = Path(__file__).with_name("shaders")
 

@@ -179,7 +179,8 @@ class NodeRuntime:
 
     def _barrier(self) -> bool:
         """Wait for all expected subscribers, report ready, wait for start. False if stopped first."""
-        expected = [(out["topic"], sub) for out in self.spec["outputs"].values() for sub in out.get("subscriber_ids", [])]
+        expected = [(out["topic"], sub) for out in self.spec["outputs"].values()
+                    for sub in out.get("subscriber_ids", [])]
         last_note = time.monotonic()
         while not self.stop_requested:
             self.publisher.poll_subscriptions(50)

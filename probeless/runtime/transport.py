@@ -109,5 +109,4 @@ class Publisher:
 
 
 # The receiver side lives in probeless.runtime.receiver; re-exported for existing imports.
-from probeless.runtime.receiver import (BLOCK_RECV_HWM, DROP_RECV_HWM, EOS_MARK, InputWire,  # noqa: E402,F401
-                                        RawMessage, Receiver)
+from probeless.runtime.receiver import BLOCK_RECV_HWM, DROP_RECV_HWM, EOS_MARK, InputWire, RawMessage, Receiver  # noqa: E402,F401

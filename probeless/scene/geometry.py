@@ -51,7 +51,8 @@ class AreaLight:
     half_v: np.ndarray        # (3,) float64 half-extent vector along the second side [m, world]
     normal: np.ndarray        # (3,) float64 unit direction the light emits into (into the room) [world]
     radiance: np.ndarray      # (3,) float64 emitted radiance when on [linear]
-    ambient: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) radiance this light adds everywhere when on, standing in for interreflection [linear]
+    # (3,) radiance this light adds everywhere when on, standing in for interreflection [linear]
+    ambient: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def area(self) -> float:

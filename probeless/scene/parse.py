@@ -13,8 +13,17 @@ from probeless.errors import GraphError, SceneError
 from probeless.geom.rotation import rotation_from_rpy
 from probeless.launch.yamlload import load_yaml
 from probeless.scene.fields import Where, boolean, integer, mapping, number, sequence, string, vector
-from probeless.scene.spec import (FisheyeCamera, Furniture, Keyframe, Light, Material, RgbdCamera, Scene,
-                                  VirtualObject, Window)
+from probeless.scene.spec import (
+    FisheyeCamera,
+    Furniture,
+    Keyframe,
+    Light,
+    Material,
+    RgbdCamera,
+    Scene,
+    VirtualObject,
+    Window,
+)
 from probeless.scene.validate import check_scene
 
 DEFAULT_COLORS = {"walls": (0.7, 0.7, 0.68), "floor": (0.35, 0.25, 0.18), "ceiling": (0.85, 0.85, 0.83)}

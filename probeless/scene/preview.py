@@ -55,7 +55,8 @@ def _fit(img: np.ndarray, width: int, height: int) -> np.ndarray:
     return out
 
 
-def contact_sheet(panels: list[tuple[str, np.ndarray]], cell: tuple[int, int] = (640, 480), columns: int = 2) -> np.ndarray:
+def contact_sheet(panels: list[tuple[str, np.ndarray]], cell: tuple[int, int] = (640, 480),
+                  columns: int = 2) -> np.ndarray:
     """RGB uint8 grid of labelled panels, each fitted into a ``cell`` (width, height)."""
     w, h = cell
     rows = (len(panels) + columns - 1) // columns

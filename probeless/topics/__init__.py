@@ -24,10 +24,23 @@ Python API (``out``/``err`` are text streams; every function raises ProbelessErr
 """
 
 from probeless.topics.catalog import Subscriber, Topic, find_topic, graph_topics, list_topics
-from probeless.topics.cli import (add_topic_parser, cmd_topic_echo, cmd_topic_hz, cmd_topic_info, cmd_topic_list,
-                                  topic_main)
-from probeless.topics.discovery import (NO_GRAPH_HINT, RunningGraph, load_graph_dir, pid_alive, running_graphs,
-                                        runs_base, select_graph)
+from probeless.topics.cli import (
+                                  add_topic_parser,
+                                  cmd_topic_echo,
+                                  cmd_topic_hz,
+                                  cmd_topic_info,
+                                  cmd_topic_list,
+                                  topic_main,
+)
+from probeless.topics.discovery import (
+                                  NO_GRAPH_HINT,
+                                  RunningGraph,
+                                  load_graph_dir,
+                                  pid_alive,
+                                  running_graphs,
+                                  runs_base,
+                                  select_graph,
+)
 from probeless.topics.echo import echo
 from probeless.topics.formatting import MAX_INLINE_ITEMS, format_message, summarize_array
 from probeless.topics.hz import RateStats, format_rate, hz

@@ -54,7 +54,8 @@ class RunningGraph:
 
     def describe(self) -> str:
         started = time.strftime("%H:%M:%S", time.localtime(self.started_ns / 1e9)) if self.started_ns else "?"
-        return f"{self.plan.get('file', '?')} (run dir {self.run_dir}, launcher pid {self.launcher_pid}, started {started})"
+        return (f"{self.plan.get('file', '?')} (run dir {self.run_dir}, launcher pid {self.launcher_pid}, "
+                f"started {started})")
 
 
 def load_graph_dir(run_dir: str | Path) -> RunningGraph:

@@ -77,7 +77,8 @@ def rgbd_pose_at(rgbd: Track, t: int, mode: str) -> np.ndarray | None:
         return interpolate_pose(rgbd.poses[after - 1], st[after - 1], rgbd.poses[after], st[after], t) if ok else None
     if mode == "extrapolated":
         ok = after >= 2
-        return interpolate_pose(rgbd.poses[after - 2], st[after - 2], rgbd.poses[after - 1], st[after - 1], t) if ok else None
+        return (interpolate_pose(rgbd.poses[after - 2], st[after - 2], rgbd.poses[after - 1], st[after - 1], t)
+                if ok else None)
     if mode == "latest":
         return rgbd.poses[after - 1] if after else None
     if mode == "nearest":
@@ -166,7 +167,8 @@ def scene_extrinsics(metadata: dict, where: str) -> np.ndarray:
         e = yaml.safe_load(text)["rig"]["fisheye_from_rgbd"]
         return transform_from_rpy(e["translation"], e["rpy_deg"])
     except (KeyError, TypeError, yaml.YAMLError) as exc:
-        raise BagError(f"{where}: scene metadata has no usable rig.fisheye_from_rgbd ({type(exc).__name__}: {exc})") from None
+        raise BagError(f"{where}: scene metadata has no usable rig.fisheye_from_rgbd "
+                       f"({type(exc).__name__}: {exc})") from None
 
 
 def bag_inputs(path: str | Path, rig_id: str | None = None, pose_topic: str | None = None,

@@ -82,7 +82,8 @@ def run_slam(path: str | Path, params: SlamParams | None = None, *, start: int =
                 if source_depth_model:
                     params = source_params(params, s, explicit)
                 run.params = params
-                slam = DenseSlam(params, s.K, s.rgb.shape[1], s.rgb.shape[0], _initial(initial_pose, s.gt_world_from_rgbd))
+                slam = DenseSlam(params, s.K, s.rgb.shape[1], s.rgb.shape[0],
+                                 _initial(initial_pose, s.gt_world_from_rgbd))
             t0 = time.perf_counter()
             r = slam.step(s.rgb, s.depth, s.depth_scale, s.stamp_ns)
             run.wall_s += time.perf_counter() - t0

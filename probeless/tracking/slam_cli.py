@@ -61,7 +61,8 @@ def cmd_slam_run(ns: argparse.Namespace) -> int:
     if ns.json:
         print(json.dumps(report))
         return 0
-    print(f"{ns.dataset}: {run.frames} frames, {run.failures} failure(s) ({', '.join(f'{k} {v}' for k, v in states.items())})")
+    print(f"{ns.dataset}: {run.frames} frames, {run.failures} failure(s) "
+          f"({', '.join(f'{k} {v}' for k, v in states.items())})")
     print("mean cost per frame: " + ", ".join(f"{k} {v:.1f} ms" for k, v in costs.items())
           + f"; total {report['slam_ms_per_frame']:.1f} ms")
     print(f"trajectory written to {path}")

@@ -9,7 +9,6 @@ import numpy as np
 from probeless.errors import ProbelessError
 from probeless.tracking.weighted_icp import KINECT_SIGMA
 
-
 # The TSDF grid is turned against the world (xyz Euler angles) so that no grid axis is parallel to
 # the walls, floor or ceiling of a room. Open3D's raycast reads the TSDF of the voxel containing each
 # sample, so a surface parallel to the voxel faces is seen quantised to the voxel, and frame-to-model
@@ -51,17 +50,19 @@ class SlamParams:
     def __post_init__(self) -> None:
         n = round(1.0 / self.scale) if self.scale > 0 else 0
         if n < 1 or abs(1.0 / n - self.scale) > 1e-9:
-            raise ProbelessError(f"SlamParams.scale: must be 1/n for an integer n >= 1 (1, 0.5, 0.25...), got {self.scale}")
+            raise ProbelessError("SlamParams.scale: must be 1/n for an integer n >= 1 (1, 0.5, 0.25...), "
+                                 f"got {self.scale}")
         if self.integrate_every < 1 or self.raycast_every < 1:
             raise ProbelessError("SlamParams.integrate_every and raycast_every: must be >= 1, got "
                                  f"{self.integrate_every} and {self.raycast_every}")
         if self.depth_weighting and (self.refine_iterations < 1 or self.refine_step < 1 or len(self.depth_sigma) != 3
                                      or not all(np.isfinite(self.depth_sigma)) or self.depth_sigma[0] <= 0
                                      or self.depth_sigma[1] < 0):
-            raise ProbelessError("SlamParams: depth weighting needs refine_iterations, refine_step >= 1 and depth_sigma "
-                                 f"(a, b, z0) finite with a > 0, b >= 0; got {self}")
+            raise ProbelessError("SlamParams: depth weighting needs refine_iterations, refine_step >= 1 and "
+                                 f"depth_sigma (a, b, z0) finite with a > 0, b >= 0; got {self}")
         if not 0 < self.depth_min < self.depth_max or self.voxel_size <= 0 or not self.iterations:
-            raise ProbelessError(f"SlamParams: need 0 < depth_min < depth_max, voxel_size > 0 and iterations; got {self}")
+            raise ProbelessError("SlamParams: need 0 < depth_min < depth_max, voxel_size > 0 and iterations; "
+                                 f"got {self}")
 
 
 @dataclass(frozen=True)

@@ -60,13 +60,15 @@ def format_report(r: dict) -> str:
     f, a, rf, rs = r["frames"], r["ate"], r["rpe"]["per_frame"], r["rpe"]["per_second"]
     costs = ", ".join(f"{k} {v['mean']:.1f} ms" for k, v in r["costs_ms"].items())
     lines = [
-        f"{r['dataset']}: {f['processed']} frames processed, {f['dropped']} dropped, {r['failures']} tracking failure(s)",
+        (f"{r['dataset']}: {f['processed']} frames processed, {f['dropped']} dropped, "
+         f"{r['failures']} tracking failure(s)"),
         (f"ATE RMSE {mm(a['rmse'])} (mean {mm(a['mean'])}, median {mm(a['median'])}, max {mm(a['max'])}; "
          f"{a['n']} frames with ground truth)"),
         (f"RPE per frame: {mm(rf['trans_rmse'])}, {_deg(rf)} RMSE ({rf['n']} pairs); "
          f"per {rs['delta']['s']:g} s: {mm(rs['trans_rmse'])}, {_deg(rs)} ({rs['n']} pairs)"),
         f"mean cost per frame: {costs}; SLAM total {r['slam_ms_per_frame']:.1f} ms",
-        f"depth_max {r['params']['depth_max']:g} m, voxel {r['params']['voxel_size'] * 1e3:g} mm, scale {r['params']['scale']:g}",
+        (f"depth_max {r['params']['depth_max']:g} m, voxel {r['params']['voxel_size'] * 1e3:g} mm, "
+         f"scale {r['params']['scale']:g}"),
     ]
     if "depth_consistency" in r:
         from probeless.tracking.depth_consistency import format_consistency
