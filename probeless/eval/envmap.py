@@ -8,7 +8,6 @@ abbreviates ``--figures DIR``.
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 from typing import Any
 
@@ -53,10 +52,6 @@ def _scene_path(path: str) -> str:
     return str(tmp)
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
 def run(ns: argparse.Namespace) -> int:
     """Render, evaluate every method, draw, print the table or one JSON object. Returns the exit status."""
     from probeless.envmap.evaluate import evaluate_envmaps
@@ -69,12 +64,11 @@ def run(ns: argparse.Namespace) -> int:
     out: dict[str, Any] = {"scene": ns.scene, "times_s": rendered.eval_times, "units": "camera LDR (PSNR peak 1)"}
     for m, res in results.items():
         means = res.means()
-        out[m] = {o: {**{k: _finite(v) for k, v in vals.items()},
-                      "series": {k: [_finite(x) for x in res.series[o][k]] for k in METRICS}}
-                  for o, vals in means.items()}
+        out[m] = {o: {**vals, "series": {k: list(res.series[o][k]) for k in METRICS}}
+                  for o, vals in means.items()}  # non-finite values become null in print_json
     if "ours" in results and "baseline" in results:
-        out["ours_minus_baseline_psnr_db"] = {o: _finite(results["ours"].means()[o]["envmap_psnr"]
-                                                         - results["baseline"].means()[o]["envmap_psnr"])
+        out["ours_minus_baseline_psnr_db"] = {o: results["ours"].means()[o]["envmap_psnr"]
+                                              - results["baseline"].means()[o]["envmap_psnr"]
                                               for o in results["ours"].means()}
     if ns.figure:
         from probeless.envmap.figures import plot_psnr

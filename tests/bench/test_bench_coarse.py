@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 import pytest
-from bench_checks import positive
+from bench_checks import one_json_object, positive
 from locations import REPO
 
 from probeless.bench.coarse import SCENE, main, print_table, strided_subset
@@ -25,16 +25,8 @@ STAGES = {"occlusion", "texture_update", "brightness_all", "brightness_sampled",
 @pytest.fixture(scope="module")
 def result() -> dict:
     """One small in-process run: 256 x 256 atlas, 3 frames, Δ sampled with 8000 of its texels."""
-    import io
-    from contextlib import redirect_stdout
-
-    buf = io.StringIO()
-    with redirect_stdout(buf):
-        assert main(json_out=True, atlas_size=256, frames=3, serial_texels=500, sample_texels=8000,
-                    show_progress=False) == 0
-    out = buf.getvalue()
-    assert out.count("\n") == 1 and out.endswith("\n")  # exactly one JSON line
-    return json.loads(out)
+    return one_json_object(lambda: main(json_out=True, atlas_size=256, frames=3, serial_texels=500,
+                                        sample_texels=8000, show_progress=False))
 
 
 @pytest.mark.gl

@@ -3,14 +3,11 @@ with each other and sane (not timing values: those depend on the machine)."""
 
 from __future__ import annotations
 
-import io
-import json
-from contextlib import redirect_stdout
 from pathlib import Path
 
 import numpy as np
 import pytest
-from bench_checks import positive
+from bench_checks import one_json_object, positive
 
 from probeless.bench import pano as bench_pano
 
@@ -21,12 +18,7 @@ STAGES = {"itmo_gpu_paper", "diffuse_gpu_32x16", "diffuse_matmul_32x16", "upload
 
 @pytest.fixture(scope="module")
 def result() -> dict:
-    buf = io.StringIO()
-    with redirect_stdout(buf):
-        assert bench_pano.main(json_out=True, quick=True, show_progress=False) == 0
-    out = buf.getvalue()
-    assert out.count("\n") == 1 and out.endswith("\n")  # exactly one JSON line
-    return json.loads(out)
+    return one_json_object(lambda: bench_pano.main(json_out=True, quick=True, show_progress=False))
 
 
 @pytest.mark.gl
