@@ -82,3 +82,7 @@ class DeviceError(ProbelessError):
 
 class GeometryError(ProbelessError):
     """Bad geometric input: a floorplan that is not a simple counter-clockwise polygon, a viewpoint outside it."""
+
+
+class HdrError(ProbelessError):
+    """HDR expansion of a point cloud: a bad cloud, photo, view or field (paper 001, §4)."""
