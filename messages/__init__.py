@@ -22,7 +22,7 @@ from probeless.messages.diagnostics import InputCounters, NodeStatus, StageTimin
 from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.header import Clock, Header, Tick
 from probeless.messages.lighting import BrightnessDelta, Cubemap, CubemapLevel, SHCoefficients
-from probeless.messages.mesh import PointCloud, TriangleMesh
+from probeless.messages.mesh import HdrPointCloud, PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
 
 __all__ = [
@@ -38,7 +38,7 @@ __all__ = [
     # geometry
     "PoseStamped", "Floorplan",
     # mesh
-    "PointCloud", "TriangleMesh",
+    "PointCloud", "HdrPointCloud", "TriangleMesh",
     # lighting
     "Cubemap", "CubemapLevel", "SHCoefficients", "BrightnessDelta",
 ]

@@ -45,6 +45,39 @@ class PointCloud(Message):
         return len(self.points)
 
 
+@message("mesh/HdrPointCloud", version=1)
+@dataclass(frozen=True)
+class HdrPointCloud(Message):
+    """A point cloud with unbounded linear radiance per point: an LDR cloud expanded to HDR (paper 001, §4).
+
+    "Cloud units": the LDR colours' linear scale (1 = LDR white); an over-exposed point's radiance is
+    ``alpha x`` the HDR photo's radiance, ``alpha`` the photo's matched exposure (:mod:`probeless.hdr`).
+    """
+
+    header: Header      # stamp = time the expansion ran; frame_id = frame the points are expressed in
+    points: np.ndarray = array("float32", ("n", 3))                # positions (x, y, z) [m, header.frame_id]
+    radiance: np.ndarray = array("float32", ("n", 3))              # linear RGB radiance, >= 0, unbounded [cloud units]
+    # unit normals, 0 rows = none [-, header.frame_id]
+    normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))
+    # the LDR colours before expansion, 0 rows = none [float linear 0..1]
+    ldr_colors: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))
+
+    def validate(self) -> None:
+        n = len(self.points)
+        _optional_rows(self, "normals", n, "point")
+        _optional_rows(self, "ldr_colors", n, "point")
+        for name in ("radiance", "ldr_colors"):
+            a = getattr(self, name)
+            if not np.isfinite(a).all():
+                raise SchemaError(f"HdrPointCloud.{name}: has {int((~np.isfinite(a)).sum())} NaN or infinite values")
+            if (a < 0).any():
+                raise SchemaError(f"HdrPointCloud.{name}: has {int((a < 0).sum())} negative values "
+                                  f"(min {float(a.min()):g})")
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+
 @message("mesh/TriangleMesh", version=1)
 @dataclass(frozen=True)
 class TriangleMesh(Message):

@@ -158,6 +158,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_eval_parser(sub)
     add_slam_parser(sub)
 
+    from probeless.hdr.cli import add_hdr_parser
+
+    add_hdr_parser(sub)
+
     from probeless.coarse.cli import add_coarse_parser
 
     # old spellings of evaluations: `coarse eval` (beside `coarse preview`), `pano glossy|diffuse|itmo`

@@ -21,6 +21,7 @@ from probeless.messages import (
     CubemapLevel,
     DepthImage,
     Floorplan,
+    HdrPointCloud,
     Header,
     Image,
     InputCounters,
@@ -71,6 +72,16 @@ def point_cloud() -> PointCloud:
     return PointCloud(header("rgbd"), rng.random((5, 3), dtype=np.float32),
                       rng.integers(0, 256, (5, 3), dtype=np.uint8),
                       normals=np.tile(np.array([0, 0, 1], np.float32), (5, 1)))
+
+
+def hdr_point_cloud() -> HdrPointCloud:
+    rng = _rng()
+    return HdrPointCloud(header("world"), rng.random((5, 3), dtype=np.float32),
+                         np.array([[0.1, 0.2, 0.3], [1.0, 1.0, 1.0], [12.5, 9.0, 4.0], [0, 0, 0], [300, 250, 200]],
+                                  np.float32),
+                         normals=np.tile(np.array([0, 0, 1], np.float32), (5, 1)),
+                         ldr_colors=np.array([[0.1, 0.2, 0.3], [1, 1, 1], [1, 1, 1], [0, 0, 0], [1, 1, 1]],
+                                             np.float32))
 
 
 def triangle_mesh() -> TriangleMesh:
@@ -128,6 +139,7 @@ EXAMPLES: dict[str, Callable[[], Message]] = {
     "geometry/PoseStamped": pose_stamped,
     "geometry/Floorplan": floorplan,
     "mesh/PointCloud": point_cloud,
+    "mesh/HdrPointCloud": hdr_point_cloud,
     "mesh/TriangleMesh": triangle_mesh,
     "lighting/Cubemap": cubemap,
     "lighting/SHCoefficients": sh_coefficients,

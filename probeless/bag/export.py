@@ -4,8 +4,10 @@
   ``jsonschema``, message encoding ``json``): Image and DepthImage -> ``foxglove.RawImage``,
   PoseStamped -> ``foxglove.PoseInFrame`` (frame_id = header.frame_id; the child frame is not
   representable), PointCloud -> ``foxglove.PointCloud`` (x, y, z float32 + red, green, blue, alpha
-  uint8), TriangleMesh -> ``foxglove.SceneUpdate`` with one TriangleListPrimitive. Other types have
-  no Foxglove equivalent and are skipped (counted per topic). Float colour images are linear, which
+  uint8), HdrPointCloud -> ``foxglove.PointCloud`` too, its unbounded radiance tone-mapped for display
+  (Reinhard ``x / (1 + x)`` per channel, then sRGB 8-bit through :func:`probeless.color.to_srgb8`),
+  TriangleMesh -> ``foxglove.SceneUpdate`` with one TriangleListPrimitive. Other types have no
+  Foxglove equivalent and are skipped (counted per topic). Float colour images are linear, which
   RawImage cannot show: they become rgb8/rgba8 through the sRGB transfer curve; rgb16 becomes rgb8.
 * ``png-dir``: every image topic as numbered PNGs ``DIR/<topic, "/" -> "__">/000000.png`` plus a
   ``timestamps.csv``; 16-bit images and uint16 depth stay 16-bit, float32 depth becomes uint16 mm.
@@ -100,11 +102,25 @@ def _colors8(colors: np.ndarray) -> np.ndarray:
     return colors if colors.dtype == np.uint8 else to_srgb8(colors)
 
 
+def reinhard(radiance: np.ndarray) -> np.ndarray:
+    """Reinhard tone map per channel, ``x / (1 + x)``: linear radiance >= 0 (unbounded) -> linear 0..1."""
+    r = np.maximum(np.asarray(radiance, np.float32), 0.0)
+    return r / (1.0 + r)
+
+
 def _fox_cloud(msg, topic, s):
+    return _fox_points(msg, msg.colors)
+
+
+def _fox_hdr_cloud(msg, topic, s):
+    return _fox_points(msg, reinhard(msg.radiance))
+
+
+def _fox_points(msg, colors):
     dt = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
                    ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("alpha", "u1")])
     pts = np.zeros(len(msg.points), dt)
-    c = _colors8(msg.colors)
+    c = _colors8(colors)
     pts["x"], pts["y"], pts["z"] = msg.points.T
     pts["red"], pts["green"], pts["blue"], pts["alpha"] = c[:, 0], c[:, 1], c[:, 2], 255
     fields = [{"name": n, "offset": dt.fields[n][1], "type": 7 if n in ("x", "y", "z") else 1} for n in dt.names]
@@ -129,7 +145,7 @@ def _fox_mesh(msg, topic, s):
 
 FOXGLOVE: dict[str, Callable[[Any, str, ExportSummary], tuple[str, dict]]] = {
     "sensor/Image": _fox_image, "sensor/DepthImage": _fox_depth, "geometry/PoseStamped": _fox_pose,
-    "mesh/PointCloud": _fox_cloud, "mesh/TriangleMesh": _fox_mesh,
+    "mesh/PointCloud": _fox_cloud, "mesh/HdrPointCloud": _fox_hdr_cloud, "mesh/TriangleMesh": _fox_mesh,
 }
 
 # -- minimal JSON schemas of what is emitted -----------------------------------------------------

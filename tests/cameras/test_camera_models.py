@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from locations import SHARED_DATA
 
 from probeless.cameras import KannalaBrandtModel, OcamModel, OmnidirModel, PinholeModel, model_from_info
 from probeless.cameras.io import load_calibration, load_calibration_extra, save_calibration
 from probeless.errors import CalibrationError
 
-OCAM_FILE = Path("/work/shared/data/fisheye/ocamcalib/calib_results_fisheye.txt")
+OCAM_FILE = SHARED_DATA / "fisheye" / "ocamcalib" / "calib_results_fisheye.txt"
 
 
 def random_K(rng, skew=True):

@@ -7,6 +7,7 @@ import time
 import cv2
 import numpy as np
 import pytest
+from locations import SHARED_DATA
 
 from probeless.color import from_srgb8
 from probeless.datasets.playback import drain
@@ -16,8 +17,8 @@ from probeless.pano.sources import VideoFrames, equirect_ok, read_panorama
 from probeless.runtime.params import load_params
 from probeless.runtime.testing import RecordingContext
 
-VIDEO = "/work/shared/data/video360/bled_lake_360_timelapse_720p_vp9.webm"
-HDR = "/work/shared/data/hdri/venice_sunset_1k.hdr"
+VIDEO = str(SHARED_DATA / "video360" / "bled_lake_360_timelapse_720p_vp9.webm")
+HDR = str(SHARED_DATA / "hdri" / "venice_sunset_1k.hdr")
 
 
 def decode_rgbe(path: str) -> np.ndarray:

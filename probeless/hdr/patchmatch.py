@@ -1,0 +1,314 @@
+"""Generalized PatchMatch (Barnes, Shechtman, Goldman, Finkelstein, ECCV 2010) for the HDR transfer of paper 001, §4.1.
+
+For every pixel of a rendering S (the *source*) :func:`patchmatch` finds the most similar patch of the photo's LDR
+version I_LDR (the *target*), searching over translation, rotation and scale, and returns the nearest-neighbour field
+(:class:`Field`: target patch centre, angle, scale) with its quality field, the SSD. :func:`fetch` then reads I_HDR
+through the field (I_HDR and I_LDR have the same size).
+
+Conventions
+
+* Images are float32 (H, W, 3), linear 0..1. ``mode="rgb"`` matches on the three channels (the paper's
+  ``pmatch-rgb``), ``mode="lum"`` on the Rec. 709 luminance only (``pmatch-lum``).
+* A source patch is the ``patch`` x ``patch`` square around the pixel, clamped to the source image. The target patch
+  of a field entry (x, y, a, s) samples the target bilinearly at ``(x, y) + s R(a) (dx, dy)`` for the source offsets
+  (dx, dy), ``R(a) = [[cos a, -sin a], [sin a, cos a]]`` in pixel coordinates (x right, y down, so a positive angle
+  turns clockwise on screen), with coordinates clamped to the image. ``s > 1`` means the target content is larger.
+  A target made with ``cv2.warpAffine(src, cv2.getRotationMatrix2D(c, deg, k), ...)`` has ``s = k`` and
+  ``a = -radians(deg)``.
+* ``ssd`` is the **sum** of squared differences over the patch's pixels and the matched channels (3 for ``rgb``,
+  1 for ``lum``), in the image's units squared; divide by ``patch**2 * channels`` for a per-value mean.
+* Translation only (``angles=None`` and ``scales=None``): centres are integer pixels and no interpolation is done.
+* The algorithm: random initialisation; then per iteration, in scan order (forwards on even iterations, backwards on
+  odd ones), propagation from the left/upper (right/lower) neighbour, whose centre is moved by its own rotation and
+  scale of the one-pixel step, with its angle and scale; then random search around the current best with a window
+  halving from the whole target (position) and the whole range (angle, log scale) down to one pixel.
+* Parallelism: the rows are cut into bands of 64 that are scanned in parallel; propagation stays within a band, and
+  the band boundaries move by half a band every second iteration. Random numbers are a hash of (seed, iteration,
+  pixel), so the field does not depend on the number of threads.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from probeless.errors import HdrError
+from probeless.hdr import patchmatch_kernels as _k
+
+_REC709 = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+_BAND = 64
+MODES = ("rgb", "lum")
+
+
+@dataclass(frozen=True)
+class Field:
+    """A nearest-neighbour field from a source (H, W) into a target of ``target_shape`` (Ht, Wt).
+
+    ``xy`` (H, W, 2) float32: target patch centre (x, y) in pixels; ``angle`` (H, W) float32 [rad]; ``scale`` (H, W)
+    float32; ``ssd`` (H, W) float32: sum of squared differences over the patch and the matched channels.
+    The remaining attributes are the parameters that produced it (``iterations == 0`` and ``seed is None`` for
+    :func:`exhaustive_nnf` and :func:`identity_field`).
+    """
+
+    xy: np.ndarray
+    angle: np.ndarray
+    scale: np.ndarray
+    ssd: np.ndarray
+    target_shape: tuple[int, int]
+    patch: int
+    iterations: int
+    angles: tuple[float, float] | None
+    scales: tuple[float, float] | None
+    seed: int | None
+    mode: str
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The source's (H, W)."""
+        return self.angle.shape
+
+
+# ---------------------------------------------------------------------------------------------------- validation
+
+def _image(img, name: str, fn: str) -> np.ndarray:
+    if not isinstance(img, np.ndarray):
+        raise HdrError(f"{fn}: {name} must be a numpy array, got {type(img).__name__}")
+    if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 1 or img.shape[1] < 1:
+        raise HdrError(f"{fn}: {name} must be an (H, W, 3) image, got shape {img.shape}")
+    if not np.issubdtype(img.dtype, np.floating):
+        raise HdrError(f"{fn}: {name} must be a float image (linear 0..1), got dtype {img.dtype}")
+    out = np.ascontiguousarray(img, dtype=np.float32)
+    if not np.isfinite(out).all():
+        raise HdrError(f"{fn}: {name} has NaN or infinite values")
+    return out
+
+
+def _patch(patch, fn: str) -> int:
+    if isinstance(patch, (bool, np.bool_)) or not isinstance(patch, (int, np.integer)):
+        raise HdrError(f"{fn}: patch must be an odd integer >= 3, got {patch!r}")
+    if patch < 3 or patch % 2 == 0:
+        raise HdrError(f"{fn}: patch must be an odd integer >= 3, got {patch}")
+    return int(patch)
+
+
+def _mode(mode, fn: str) -> str:
+    if mode not in MODES:
+        raise HdrError(f"{fn}: mode must be one of {MODES}, got {mode!r}")
+    return mode
+
+
+def _range(value, name: str, fn: str, *, positive: bool) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise HdrError(f"{fn}: {name} must be None or a (low, high) pair of numbers, got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
+        raise HdrError(f"{fn}: {name} must be a finite (low, high) pair with low <= high, got {value!r}")
+    if positive and lo <= 0.0:
+        raise HdrError(f"{fn}: {name} must be positive, got {value!r}")
+    if not positive and (lo < -math.pi or hi > math.pi):
+        raise HdrError(f"{fn}: {name} must lie in [-pi, pi], got {value!r}")
+    return lo, hi
+
+
+def _matchable(img: np.ndarray, mode: str) -> np.ndarray:
+    if mode == "lum":
+        return np.ascontiguousarray((img @ _REC709)[..., None], dtype=np.float32)
+    return img
+
+
+def _pad(img: np.ndarray, r: int) -> np.ndarray:
+    return np.ascontiguousarray(np.pad(img, ((r, r), (r, r), (0, 0)), mode="edge"))
+
+
+def _bands(height: int, it: int) -> tuple[np.ndarray, np.ndarray]:
+    off = _BAND // 2 if (it // 2) % 2 else 0
+    cuts = np.unique(np.clip(np.arange(off - _BAND, height + _BAND, _BAND), 0, height))
+    return cuts[:-1].astype(np.int64), cuts[1:].astype(np.int64)
+
+
+# ---------------------------------------------------------------------------------------------------- API
+
+def patchmatch(source: np.ndarray, target: np.ndarray, *, patch: int = 7, iterations: int = 5,
+               angles: tuple[float, float] | None = (-math.pi / 4, math.pi / 4),
+               scales: tuple[float, float] | None = (0.67, 1.5), seed: int = 0, mode: str = "rgb") -> Field:
+    """Generalized PatchMatch of ``source`` (H, W, 3) into ``target`` (Ht, Wt, 3); see the module doc.
+
+    ``angles`` [rad] and ``scales`` are the searched (low, high) ranges; ``None`` fixes the angle at 0 / the scale at
+    1, and both ``None`` is the translation-only PatchMatch (integer centres). Deterministic for a given ``seed``.
+    Raises :class:`HdrError` naming the bad argument.
+    """
+    fn = "patchmatch"
+    s = _image(source, "source", fn)
+    t = _image(target, "target", fn)
+    p = _patch(patch, fn)
+    mode = _mode(mode, fn)
+    if isinstance(iterations, (bool, np.bool_)) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
+        raise HdrError(f"{fn}: iterations must be an integer >= 0, got {iterations!r}")
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2 ** 63:
+        raise HdrError(f"{fn}: seed must be an integer in [0, 2**63), got {seed!r}")
+    angles = _range(angles, "angles", fn, positive=False)
+    scales = _range(scales, "scales", fn, positive=True)
+    general = angles is not None or scales is not None
+    amin, amax = angles if angles is not None else (0.0, 0.0)
+    lsmin, lsmax = (math.log(scales[0]), math.log(scales[1])) if scales is not None else (0.0, 0.0)
+    r = p // 2
+    sp = _pad(_matchable(s, mode), r)
+    tm = _matchable(t, mode)
+    h, w = s.shape[:2]
+    fx, fy, fa, fs = (np.empty((h, w), np.float32) for _ in range(4))
+    fd = np.empty((h, w), np.float64)
+    tf = _k.bilinear_table(tm) if general else _pad(tm, r).ravel()
+    ht, wt = t.shape[:2]
+    _k.init_field(sp, tf, ht, wt, r, general, int(seed), amin, amax, lsmin, lsmax, fx, fy, fa, fs, fd)
+    for it in range(int(iterations)):
+        starts, ends = _bands(h, it)
+        _k.iterate(sp, tf, ht, wt, r, general, int(seed), it, starts, ends, amin, amax, lsmin, lsmax,
+                   fx, fy, fa, fs, fd)
+    return Field(xy=np.stack([fx, fy], axis=-1), angle=fa, scale=fs, ssd=fd.astype(np.float32),
+                 target_shape=(int(t.shape[0]), int(t.shape[1])), patch=p, iterations=int(iterations),
+                 angles=angles, scales=scales, seed=int(seed), mode=mode)
+
+
+def exhaustive_nnf(source: np.ndarray, target: np.ndarray, patch: int = 7, *, mode: str = "rgb") -> Field:
+    """The exact translation-only nearest-neighbour field by brute force (same patches and SSD as
+    :func:`patchmatch` with ``angles=scales=None``). O(H W Ht Wt patch^2): for small images (tests, benchmarks)."""
+    fn = "exhaustive_nnf"
+    s = _image(source, "source", fn)
+    t = _image(target, "target", fn)
+    p = _patch(patch, fn)
+    mode = _mode(mode, fn)
+    r = p // 2
+    h, w = s.shape[:2]
+    fx, fy = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
+    fd = np.empty((h, w), np.float64)
+    nchunks = max(1, min(16, h + t.shape[0] - 1))
+    _k.exhaustive(_pad(_matchable(s, mode), r), _pad(_matchable(t, mode), r), r, nchunks, fx, fy, fd)
+    return Field(xy=np.stack([fx, fy], axis=-1), angle=np.zeros((h, w), np.float32),
+                 scale=np.ones((h, w), np.float32), ssd=fd.astype(np.float32),
+                 target_shape=(int(t.shape[0]), int(t.shape[1])), patch=p, iterations=0, angles=None, scales=None,
+                 seed=None, mode=mode)
+
+
+def identity_field(height: int, width: int, patch: int = 7) -> Field:
+    """The field that maps every pixel of an (height, width) image onto itself (SSD 0)."""
+    if not (isinstance(height, (int, np.integer)) and isinstance(width, (int, np.integer)) and height > 0 < width):
+        raise HdrError(f"identity_field: height and width must be positive integers, got {height!r}, {width!r}")
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
+    zeros = np.zeros((height, width), np.float32)
+    return Field(xy=np.stack([xs, ys], axis=-1), angle=zeros, scale=np.ones_like(zeros), ssd=zeros.copy(),
+                 target_shape=(int(height), int(width)), patch=_patch(patch, "identity_field"), iterations=0,
+                 angles=None, scales=None, seed=None, mode="rgb")
+
+
+def fetch(field: Field, image: np.ndarray) -> np.ndarray:
+    """``image`` (Ht, Wt, C) or (Ht, Wt), e.g. I_HDR, sampled bilinearly at the field's patch centres -> (H, W, C)
+    (or (H, W)) float32. ``image`` must have the field's target size and finite values (any range)."""
+    fn = "fetch"
+    if not isinstance(field, Field):
+        raise HdrError(f"{fn}: field must be a Field, got {type(field).__name__}")
+    if not isinstance(image, np.ndarray) or image.ndim not in (2, 3):
+        raise HdrError(f"{fn}: image must be an (H, W) or (H, W, C) numpy array, got "
+                       f"{getattr(image, 'shape', type(image).__name__)}")
+    if tuple(image.shape[:2]) != tuple(field.target_shape):
+        raise HdrError(f"{fn}: image is {image.shape[:2]} but the field's target is {field.target_shape}")
+    if not (np.issubdtype(image.dtype, np.floating) or np.issubdtype(image.dtype, np.integer)):
+        raise HdrError(f"{fn}: image must be numeric, got dtype {image.dtype}")
+    img = np.asarray(image, dtype=np.float32)
+    if not np.isfinite(img).all():
+        raise HdrError(f"{fn}: image has NaN or infinite values")
+    xy = np.asarray(field.xy, dtype=np.float32)
+    if not np.isfinite(xy).all():
+        raise HdrError(f"{fn}: field.xy has NaN or infinite values")
+    ht, wt = img.shape[:2]
+    x = np.clip(xy[..., 0], 0.0, wt - 1.0)
+    y = np.clip(xy[..., 1], 0.0, ht - 1.0)
+    x0 = np.floor(x).astype(np.intp)
+    y0 = np.floor(y).astype(np.intp)
+    x1 = np.minimum(x0 + 1, wt - 1)
+    y1 = np.minimum(y0 + 1, ht - 1)
+    fx = x - x0
+    fy = y - y0
+    if img.ndim == 3:
+        fx = fx[..., None]
+        fy = fy[..., None]
+    top = img[y0, x0] * (1 - fx) + img[y0, x1] * fx
+    bottom = img[y1, x0] * (1 - fx) + img[y1, x1] * fx
+    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+
+
+# ---------------------------------------------------------------------------------------------------- benchmark
+
+def synthetic_texture(height: int, width: int, seed: int = 0) -> np.ndarray:
+    """A natural-looking float32 (height, width, 3) 0..1 test texture: multi-scale smooth noise plus OpenCV shapes."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    img = np.zeros((height, width, 3), np.float32)
+    for sigma, weight in ((1.2, 0.25), (3.0, 0.35), (10.0, 0.6)):
+        noise = rng.standard_normal((height, width, 3)).astype(np.float32)
+        noise = cv2.GaussianBlur(noise, (0, 0), sigma)
+        img += weight * noise / max(float(noise.std()), 1e-6)
+    img = 0.5 + 0.12 * img
+    n = max(4, height * width // 2000)
+    for _ in range(n):
+        color = tuple(float(c) for c in rng.uniform(0.0, 1.0, 3))
+        cx, cy = int(rng.integers(0, width)), int(rng.integers(0, height))
+        size = int(rng.integers(3, max(4, min(height, width) // 6)))
+        if rng.random() < 0.5:
+            cv2.circle(img, (cx, cy), size, color, -1, cv2.LINE_AA)
+        else:
+            cv2.rectangle(img, (cx, cy), (cx + size, cy + int(rng.integers(2, size + 2))), color, -1, cv2.LINE_AA)
+    img = cv2.GaussianBlur(img, (0, 0), 0.7)
+    return np.clip(img, 0.0, 1.0).astype(np.float32)
+
+
+def time_patchmatch(size: int = 1024, *, target_shape: tuple[int, int] | None = None, pair: str = "unrelated",
+                    patch: int = 7, iterations: int = 5,
+                    angles: tuple[float, float] | None = (-math.pi / 4, math.pi / 4),
+                    scales: tuple[float, float] | None = (0.67, 1.5), mode: str = "rgb", seed: int = 0,
+                    repeat: int = 1) -> dict:
+    """Wall time of :func:`patchmatch` on a ``size`` x ``size`` synthetic source against a synthetic target of
+    ``target_shape`` (H, W), by default (size // 2, size) (the 1024x512 photo of the issue).
+
+    ``pair="unrelated"``: source and target are independent textures (the worst case: no good matches, so the
+    early exit of the SSD rarely fires); ``pair="related"``: the target is a view of the source's texture turned
+    by 10 degrees and scaled by 1.2 plus noise (sigma 0.01), like a photo of the rendered scene. One warm-up call on
+    small images first compiles (or loads) the kernels; the best of ``repeat`` runs is reported.
+    """
+    import cv2
+    import numba
+
+    if pair not in ("unrelated", "related"):
+        raise HdrError(f"time_patchmatch: pair must be 'unrelated' or 'related', got {pair!r}")
+    th, tw = target_shape if target_shape is not None else (size // 2, size)
+    src = synthetic_texture(size, size, seed=seed + 1)
+    if pair == "unrelated":
+        tgt = synthetic_texture(th, tw, seed=seed + 2)
+    else:
+        m = cv2.getRotationMatrix2D((size / 2, size / 2), 10.0, 1.2)
+        m[:, 2] += (tw / 2 - size / 2, th / 2 - size / 2)
+        tgt = cv2.warpAffine(src, m, (tw, th), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        noise = np.random.default_rng(seed).normal(0.0, 0.01, tgt.shape).astype(np.float32)
+        tgt = np.clip(tgt + noise, 0.0, 1.0).astype(np.float32)
+    t0 = time.perf_counter()
+    patchmatch(src[:32, :32], tgt[:32, :32], patch=patch, iterations=2, angles=angles, scales=scales, mode=mode)
+    warmup = time.perf_counter() - t0
+    runs = []
+    field = None
+    for _ in range(max(1, int(repeat))):
+        t0 = time.perf_counter()
+        field = patchmatch(src, tgt, patch=patch, iterations=iterations, angles=angles, scales=scales,
+                           mode=mode, seed=seed)
+        runs.append(time.perf_counter() - t0)
+    seconds = min(runs)
+    return {"source_shape": (size, size), "target_shape": (th, tw), "pair": pair, "patch": patch,
+            "iterations": iterations, "angles": angles, "scales": scales, "mode": mode,
+            "threads": numba.get_num_threads(), "seconds": seconds, "runs": runs, "warmup_seconds": warmup,
+            "megapixels_per_second": size * size / 1e6 / seconds, "mean_ssd": float(field.ssd.mean()),
+            "median_ssd": float(np.median(field.ssd))}
