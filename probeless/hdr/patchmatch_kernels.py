@@ -20,8 +20,13 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numba import njit, prange
+
+# numba tries TBB first; the TBB a machine has may be too old (numba then warns and falls back):
+# prefer OpenMP, then numba's own work queue, which are always usable for these row bands.
+numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MUL1 = np.uint64(0xBF58476D1CE4E5B9)

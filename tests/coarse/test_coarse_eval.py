@@ -30,6 +30,7 @@ def light_switch_runs():
     return [evaluate_scene(ROOT / "launch/scenes/light_switch.yaml", use_delta=d, **kw) for d in (True, False)]
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 @pytest.mark.graph
 def test_true_atlas_matches_a_pinhole_render_of_a_wall():

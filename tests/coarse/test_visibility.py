@@ -101,6 +101,7 @@ TURNED_CASES = [
 @SETTINGS
 @given(angle=st.floats(0, 2 * np.pi), shift=st.tuples(st.floats(-50, 50), st.floats(-50, 50)),
        first=st.integers(0, 8), extra=st.booleans())
+@pytest.mark.slow
 @example(angle=4.689386800826943, shift=(0.0, 0.0), first=3, extra=False)   # the first ray's vertices straddle 0 rad
 def test_rooms_moved_and_turned(angle, shift, first, extra):
     """Rotated and shifted, rays through several vertices stop being exactly collinear in floating point.
@@ -238,6 +239,7 @@ def viewpoints(draw, poly: np.ndarray):
 rooms = st.one_of(star_rooms(), orthogonal_rooms(), with_collinear(star_rooms()), with_collinear(orthogonal_rooms()))
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(data=st.data(), poly=rooms, seed=st.integers(0, 2 ** 32 - 1))
 def test_random_rooms_match_brute_force(data, poly, seed):

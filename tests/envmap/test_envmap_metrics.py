@@ -131,6 +131,7 @@ def test_diffuse_sphere_constant_and_directional_light():
     assert img16[16, 16, 0] == pytest.approx(img[16, 16, 0], rel=0.02)
 
 
+@pytest.mark.slow
 def test_sphere_psnrs():
     rng = np.random.default_rng(3)
     ref = ndimage.gaussian_filter(rng.uniform(0.1, 0.9, (6, 32, 32, 3)), (0, 2, 2, 0))

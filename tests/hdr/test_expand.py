@@ -94,6 +94,7 @@ def test_operator_per_point_needs_no_gl_or_photo(room, method):
     assert res.report["views"] == [] and res.report["alpha"] is None and res.views == []
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 @pytest.mark.parametrize("method", [m for m in METHODS if not m.endswith("-pc")])
 def test_view_methods(room, photo, method):
@@ -131,6 +132,7 @@ def test_bad_arguments(room):
         expand_cloud(p, ldr * 3, None, method="landis-pc")
 
 
+@pytest.mark.slow
 def test_hdr_ply_round_trip(tmp_path, room):
     import open3d as o3d
 

@@ -29,6 +29,7 @@ def texture() -> np.ndarray:
     return synthetic_texture(160, 288, seed=11)
 
 
+@pytest.mark.slow
 def test_translation_quality_vs_exhaustive(texture):
     # two disjoint 128^2 crops of one texture: the exact field has no zero-SSD matches
     src = texture[:128, :128]

@@ -95,6 +95,7 @@ def _fill_vs_copy(seed, amp):
     return np.sqrt(np.mean((out[miss] - hdr[miss]) ** 2)), np.sqrt(np.mean((hdr[valid][j] - hdr[miss]) ** 2))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_fill_beats_nearest_valid_copy_by_half(seed):
     """Bump up to 1.17 (about 4 % of the points clipped in the LDR): fill RMS <= 0.5 x copy RMS.

@@ -47,6 +47,7 @@ def room_cloud(step=0.03, seed=0):
     return p, n, c
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 def test_id_buffer_is_the_nearest_covering_point(renderer):
     rng = np.random.default_rng(1)
@@ -170,6 +171,7 @@ def test_saturated_clusters_find_the_blobs():
     assert saturated_clusters(p, dark) == [] and place_views(p, dark, 3) == []
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 @pytest.mark.parametrize("with_normals", [True, False])
 def test_place_views_see_each_blob(renderer, with_normals):

@@ -20,6 +20,7 @@ ROOT = REPO
 SEVEN = ROOT.parent / "shared/data/rgbd/sevenscenes_kinect_0000-0399"
 
 
+@pytest.mark.slow
 def test_tum_folder_plays_through_the_shipped_graph(tmp_path):
     tum = tmp_path / "tum"
     assert cli(["dataset", "convert", str(SEVEN), str(tum), "--format", "tum", "--max-frames", "12"]) == 0

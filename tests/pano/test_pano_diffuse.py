@@ -71,6 +71,7 @@ def test_small_cap_gives_analytic_cosine_falloff():
     np.testing.assert_allclose(brute, expect[idx], rtol=0.01)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("out_size", [(16, 8), (32, 16), (64, 32)])
 def test_fast_matches_bruteforce_within_1_percent(out_size):
     env = smooth_env(256, 128, sun=50.0)

@@ -60,6 +60,7 @@ def test_evaluate_diffuse_table(pano):
     assert f"{row['sh9']['max_rel_error']:.2e}" in line
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 @pytest.mark.graph
 def test_cli_json_and_figure(pano, tmp_path, capsys):
@@ -75,6 +76,7 @@ def test_cli_json_and_figure(pano, tmp_path, capsys):
     assert img is not None and img.shape[1] > 4 * img.shape[0]  # one row of five panels
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 @pytest.mark.graph
 def test_figure_rows_per_panorama(tmp_path):

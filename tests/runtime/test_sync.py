@@ -184,6 +184,7 @@ def test_random_invariants(streams, slop, queue_size, order, wait):
 @settings(max_examples=300, deadline=None)
 @given(data=st.data(), n_inputs=st.integers(1, 3), n_msgs=st.integers(1, 6), slop=st.integers(2, 40),
        wait=st.booleans())
+@pytest.mark.slow
 def test_identical_streams_with_small_jitter_all_match(data, n_inputs, n_msgs, slop, wait):
     gaps = data.draw(st.lists(st.integers(2 * slop + 1, 5 * slop), min_size=n_msgs, max_size=n_msgs))
     base = [sum(gaps[:k + 1]) for k in range(n_msgs)]

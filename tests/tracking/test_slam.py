@@ -307,6 +307,7 @@ def test_node_publishes_poses_states_model_and_trajectory(tmp_path):
     assert {"track", "integrate", "raycast", "extract_points", "extract_mesh"} <= set(ctx.timings.windows)
 
 
+@pytest.mark.slow
 def test_frames_before_camera_info_and_initial_pose_are_held_not_lost():
     """The race of a fast replay: rgb/depth of the first frames reach the node before camera_info and the
     initial pose (separate sockets). The frames are held and tracked in order, from their own pose."""
@@ -327,6 +328,7 @@ def test_frames_before_camera_info_and_initial_pose_are_held_not_lost():
     assert ctx.outputs("tracking")[-1].frames_skipped == 1
 
 
+@pytest.mark.slow
 def test_slam_run_command_writes_the_trajectory(tmp_path, capsys):
     ap = argparse.ArgumentParser()
     add_slam_parser(ap.add_subparsers(dest="command", required=True))
