@@ -23,7 +23,7 @@ demo: setup
 
 lint: setup
 	.venv/bin/ruff check probeless messages nodes tests tools
-	bash tools/lint_imports.sh
+	.venv/bin/lint-imports
 
 test: lint
 	.venv/bin/python -m pytest -q

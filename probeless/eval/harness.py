@@ -56,6 +56,8 @@ EVALUATIONS: dict[str, Evaluation] = {
     "itmo": Evaluation("probeless.eval.itmo", "360° IBL, Figure 7 quantified: spheres lit by LDR, inverse tone "
                                               "mapped LDR and true HDR maps, image errors against true HDR",
                        old="pano itmo"),
+    "hdr-expand": Evaluation("probeless.eval.hdr_expand", "HDR expansion of an LDR cloud (paper 001, §6.2): cloud "
+                                                          "radiance and lit spheres vs synthetic ground truth"),
 }
 
 # help of a command group that only holds old spellings (created by add_old_spellings)

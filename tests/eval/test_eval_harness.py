@@ -14,9 +14,11 @@ from probeless.eval import EVALUATIONS, add_eval_parser
 from probeless.eval.harness import emit, format_result, load
 
 ROOT = REPO
-POSITIONAL = {"slam": ["data"], "fisheye-pose": ["scene.yaml"], "envmap": ["scene.yaml"], "coarse": ["scene.yaml"]}
+POSITIONAL = {"slam": ["data"], "fisheye-pose": ["scene.yaml"], "envmap": ["scene.yaml"], "coarse": ["scene.yaml"],
+              "hdr-expand": ["scene.yaml"]}
 OWN_FIGURE_FLAG = {"slam": "--plot", "fisheye-pose": "--plot", "envmap": "--plot", "coarse": "--plot",
-                   "glossy": "--figure", "diffuse": "--figure", "itmo": "--figure"}
+                   "glossy": "--figure", "diffuse": "--figure", "itmo": "--figure",
+                   "hdr-expand": "--figure"}
 
 
 def parse(argv: list[str]) -> argparse.Namespace:
@@ -26,7 +28,8 @@ def parse(argv: list[str]) -> argparse.Namespace:
 
 
 def test_registry_names_front_ends_with_add_arguments_and_run():
-    assert list(EVALUATIONS) == ["slam", "fisheye-pose", "envmap", "coarse", "glossy", "diffuse", "itmo"]
+    assert list(EVALUATIONS) == ["slam", "fisheye-pose", "envmap", "coarse", "glossy", "diffuse", "itmo",
+                                 "hdr-expand"]
     for name, ev in EVALUATIONS.items():
         module = load(name)
         assert callable(module.add_arguments) and callable(module.run), name
