@@ -32,6 +32,7 @@ BUILTIN: dict[str, str] = {
     "fisheye_undistort": "probeless.nodes.sensors.undistort:FisheyeUndistort",
     "synthetic_rig": "probeless.nodes.sensors.synthetic_rig:SyntheticRig",
     "hdr_expander": "probeless.nodes.hdr.expander:HdrExpander",
+    "hdr_atlas_expander": "probeless.nodes.hdr.atlas_expander:HdrAtlasExpander",
     "cloud_file": "probeless.nodes.hdr.cloud_file:CloudFile",
     "hdr_cloud_writer": "probeless.nodes.hdr.writer:HdrCloudWriter",
     "bench_source": "probeless.nodes.bench.bus:BenchSource",

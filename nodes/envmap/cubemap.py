@@ -16,6 +16,19 @@ sRGB-encoded like the fisheye image; uint8 or float16; ``mip_levels - 1`` box-fi
 roughness i / (mip_levels - 1)) and ``sh/<id>`` (SHCoefficients of the map linearised with the
 sRGB curve: "linear camera units" = radiance x exposure, clipped at 1 - what a renderer that
 re-encodes to the camera's sRGB needs). Stamps are the atlas's.
+
+HDR lighting (paper 003's future work with paper 001 §4): an ``atlas`` of a float encoding (``rgbf32``,
+``rgbf16``, ``rgbaf32``, ``rgbaf16``; by the message convention float images are linear) is linear radiance in the
+camera's linear units (1 = LDR white), e.g. ``hdr_atlas_expander``'s. Such an atlas is drawn unclipped
+(:class:`probeless.envmap.cubemap.EnvmapRenderer`, ``linear=True``) and the maps come out as
+``envmap/<id>`` ``Cubemap(linear=True)``, float16 whatever ``dtype`` says (clipped at float16's largest value),
+mips of the linear map, and ``sh/<id>`` the SH of the linear map (same units: the compositor lights with the
+same ``exposure`` as for an LDR map). The dense model on top is then the newest ``hdr_points``
+(``mesh/HdrPointCloud``, e.g. ``hdr_expander``'s: its radiance, no Δ - Δ is in LDR units) once one has
+arrived, else ``points`` / ``dense_mesh`` with their Δ applied, clipped to LDR white and decoded to linear
+(:func:`probeless.hdr.coarse.dense_linear`, as ``probeless eval hdr-envmap``'s ``hdr_coarse`` map). The cube net
+written to ``net_dir`` is the linear map clipped at 1 and sRGB-encoded (what the camera would show). A ``uint8``
+atlas (the texturer's ``rgba8``) gives exactly the LDR maps above; ``hdr_points`` are then not drawn.
 """
 
 from __future__ import annotations
@@ -45,9 +58,12 @@ from probeless.messages.lighting import (
     CubemapLevel,
     SHCoefficients,
 )
-from probeless.messages.mesh import PointCloud, TriangleMesh
+from probeless.messages.mesh import HdrPointCloud, PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
+
+HDR_ATLAS_ENCODINGS = ("rgbf32", "rgbf16", "rgbaf32", "rgbaf16")  # linear radiance (module docstring)
+FLOAT16_MAX = float(np.finfo(np.float16).max)
 
 
 def to_ldr(colors: np.ndarray) -> np.ndarray:
@@ -63,11 +79,11 @@ def _mip_problem(face_size: int, p) -> str | None:
 
 
 class CubemapRenderer(Node):
-    """``floorplan`` + ``atlas`` (+ ``points`` | ``dense_mesh``, ``delta``, ``object_poses``)
+    """``floorplan`` + ``atlas`` (+ ``points`` | ``dense_mesh``, ``hdr_points``, ``delta``, ``object_poses``)
     -> ``envmap/*``, ``sh/*``."""
 
     INPUTS = {"floorplan": Floorplan, "atlas": Image, "points": PointCloud, "dense_mesh": TriangleMesh,
-              "delta": BrightnessDelta, "object_poses": PoseStamped,
+              "hdr_points": HdrPointCloud, "delta": BrightnessDelta, "object_poses": PoseStamped,
               # the baseline's inputs, accepted (ignored) so the two nodes swap by their node: line alone
               "fisheye": Image, "fisheye_pose": PoseStamped, "camera_info": CameraInfo}
     IGNORED = ("fisheye", "fisheye_pose", "camera_info")
@@ -109,7 +125,9 @@ class CubemapRenderer(Node):
         self.atlas: Image | None = None
         self.delta = np.zeros(3, np.float32)
         self.dense_msg: PointCloud | TriangleMesh | None = None
+        self.hdr_dense: HdrPointCloud | None = None
         self.dense_dirty = False
+        self.dense_uploaded: tuple | None = None  # what the renderer holds: _dense_want()'s key
         self.pending = False
         self.last_render_ns: int | None = None
         self.counts: Counter[str] = Counter()
@@ -127,6 +145,9 @@ class CubemapRenderer(Node):
             self.atlas, self.pending = msg, True
         elif name in ("points", "dense_mesh"):
             self._set_dense(msg)
+        elif name == "hdr_points":
+            if self._world_frame(msg):
+                self.hdr_dense, self.dense_dirty = msg, True
         elif name == "delta":
             if msg.sampled and self.dense_msg is not None and msg.header.stamp_ns > self.dense_msg.header.stamp_ns:
                 self.delta = self.delta + np.asarray(msg.delta, np.float32)
@@ -154,25 +175,53 @@ class CubemapRenderer(Node):
             self._once("floorplan", f"floorplan rejected: {exc}")
             return False
         self.renderer = EnvmapRenderer(layout)
-        self.dense_dirty = self.dense_msg is not None
+        self.dense_dirty = self.dense_msg is not None or self.hdr_dense is not None
+        self.dense_uploaded = None
         return True
 
-    def _set_dense(self, msg: PointCloud | TriangleMesh) -> None:
+    def _world_frame(self, msg) -> bool:
         if msg.header.frame_id != "world":
             self._once("dense_frame", f"dense model in frame '{msg.header.frame_id}', expected 'world': ignored")
             self.counts["dense_wrong_frame"] += 1
+            return False
+        return True
+
+    def _set_dense(self, msg: PointCloud | TriangleMesh) -> None:
+        if not self._world_frame(msg):
             return
         self.dense_msg, self.dense_dirty = msg, True
         self.delta = np.zeros(3, np.float32)  # the new model's colours are as of its stamp
 
-    def _upload_dense(self) -> None:
-        """Hand the newest dense model (points or mesh, whichever came last) to the renderer."""
-        m, self.dense_dirty = self.dense_msg, False
+    def _dense_want(self, hdr: bool) -> tuple | None:
+        """Key of the dense model the map needs (None: none): LDR, the HDR cloud, or the LDR model linearised
+        with the current Δ (module docstring)."""
+        if not hdr:
+            return ("ldr",) if self.dense_msg is not None else None
+        if self.hdr_dense is not None:
+            return ("hdr",)
+        return ("linear", *self.delta.tolist()) if self.dense_msg is not None else None
+
+    def _upload_dense(self, want: tuple) -> None:
+        """Hand the dense model ``want`` (:meth:`_dense_want`) to the renderer."""
+        self.dense_dirty, self.dense_uploaded = False, want
+        m = self.dense_msg
         with self.ctx.timed("upload_dense"):
-            if isinstance(m, PointCloud):
-                self.renderer.set_dense(m.points, to_ldr(m.colors))
+            if want[0] == "hdr":
+                self.renderer.set_dense(self.hdr_dense.points, self.hdr_dense.radiance, linear=True)
+            elif want[0] == "ldr":
+                if isinstance(m, PointCloud):
+                    self.renderer.set_dense(m.points, to_ldr(m.colors))
+                else:
+                    self.renderer.set_dense_mesh(m.vertices, m.triangles, to_ldr(m.vertex_colors))
             else:
-                self.renderer.set_dense_mesh(m.vertices, m.triangles, to_ldr(m.vertex_colors))
+                # imported here: probeless.hdr loads numba (about 1.5 s), which LDR maps never need
+                from probeless.hdr.coarse import dense_linear
+
+                if isinstance(m, PointCloud):
+                    self.renderer.set_dense(m.points, dense_linear(to_ldr(m.colors), self.delta), linear=True)
+                else:
+                    self.renderer.set_dense_mesh(m.vertices, m.triangles,
+                                                 dense_linear(to_ldr(m.vertex_colors), self.delta), linear=True)
 
     def _maybe_render(self) -> None:
         if not self.pending or self.floorplan is None or self.atlas is None:
@@ -182,41 +231,49 @@ class CubemapRenderer(Node):
         now, rate = self.ctx.now_ns(), self.params.max_rate_hz
         if rate > 0 and self.last_render_ns is not None and now - self.last_render_ns < 1e9 / rate:
             return
-        if self.dense_dirty and self.params.dense:
-            self._upload_dense()
+        hdr = self.atlas.encoding in HDR_ATLAS_ENCODINGS
+        want = self._dense_want(hdr)
+        if self.params.dense and want is not None and (self.dense_dirty or want != self.dense_uploaded):
+            self._upload_dense(want)
         self.pending, self.last_render_ns = False, now
         try:
             with self.ctx.timed("upload_atlas"):
-                self.renderer.set_atlas(self.atlas.data)
+                self.renderer.set_atlas(self.atlas.data, linear=hdr)
         except ProbelessError as exc:
             self._once("atlas", f"atlas rejected: {exc} (give the texturer and this node the same atlas params)")
             self.counts["atlas_rejected"] += 1
             return
         for oid, pos in self.objects.items():
-            self._render_object(oid, pos)
+            self._render_object(oid, pos, hdr)
 
-    def _render_object(self, oid: str, pos: np.ndarray) -> None:
+    def _render_object(self, oid: str, pos: np.ndarray, hdr: bool = False) -> None:
         p = self.params
         spheres = [(x, p.object_radius, p.object_color) for o, x in self.objects.items()
                    if o != oid and p.draw_objects]
+        # HDR: Δ is in camera LDR units; the LDR model's is baked into its linearised colours
+        delta = np.zeros(3, np.float32) if hdr else self.delta
         with self.ctx.timed("cubemap"):
-            faces = self.renderer.render(pos, p.face_size, self.delta, dense=p.dense, splat_m=p.splat_m,
+            faces = self.renderer.render(pos, p.face_size, delta, dense=p.dense, splat_m=p.splat_m,
                                          max_splat_px=p.max_splat_px, spheres=spheres)
         with self.ctx.timed("sh_projection"):
-            coeffs = project_cubemap(srgb_to_linear(np.clip(faces, 0, 1)), p.sh_bands)
+            coeffs = project_cubemap(faces if hdr else srgb_to_linear(np.clip(faces, 0, 1)), p.sh_bands)
         with self.ctx.timed("mips"):
             levels = prefilter(faces, p.mip_levels)
         header = Header(self.atlas.header.stamp_ns, "world")
-        enc = self._encode
+        enc = self._encode_linear if hdr else self._encode
         mips = tuple(CubemapLevel(r, enc(f)) for r, f in levels[1:])
-        self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, pos.copy(), enc(faces), mips, linear=False))
-        self.last_faces[oid] = faces
+        self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, pos.copy(), enc(faces), mips, linear=hdr))
+        self.last_faces[oid] = linear_to_srgb(np.clip(faces, 0.0, 1.0)).astype(np.float32) if hdr else faces
         self.ctx.publish(f"sh/{oid}", SHCoefficients(header, oid, p.sh_bands, coeffs.astype(np.float32)))
-        self.counts["rendered"] += 1
+        self.counts["rendered_hdr" if hdr else "rendered"] += 1
 
     def _encode(self, faces: np.ndarray) -> np.ndarray:
         f = np.clip(faces, 0.0, 1.0)
         return (f * 255.0 + 0.5).astype(np.uint8) if self.params.dtype == "uint8" else f.astype(np.float16)
+
+    @staticmethod
+    def _encode_linear(faces: np.ndarray) -> np.ndarray:
+        return np.clip(faces, 0.0, FLOAT16_MAX).astype(np.float16)
 
     def _once(self, key: str, text: str) -> None:
         if key not in self.logged:

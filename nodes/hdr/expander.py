@@ -9,7 +9,8 @@ enough: the first cloud, then only one that has grown by ``min_growth`` (a fract
 count at the last expansion) and not sooner than ``min_period_s`` after it. A cloud held back by
 ``min_period_s`` alone is expanded when the ``cloud`` input ends. A new photo alone does not
 re-expand; it is used from the next expansion. Bad inputs (an empty cloud, a photo of another
-encoding, a cloud the expansion rejects) are counted in ``bad`` and logged, never raised.
+encoding, a cloud the expansion rejects) are counted in ``bad`` and logged, never raised; empty clouds
+(a live model before its first fusion) are skipped and only counted.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ class HdrExpander(Node):
         transfer: str = param("rgb", choices=("rgb", "lum"), doc="transfer colour or luminance (and Poisson mode)")
         size: int = param(1024, min=16, max=8192, doc="view width = height [px]")
         ssd_threshold: float = param(1.0, min=1e-9, max=1e9, doc="pmatch: patch SSD rejection threshold t_h")
+        robust: bool = param(True, doc="pmatch: drop values disagreeing with their clipped cluster (not in the paper)")
         min_growth: float = param(0.05, min=0.0, max=1e6,
                                   doc="re-expand only when the cloud grew by this fraction since the last expansion")
         min_period_s: float = param(0.0, min=0.0, max=1e6, doc="at least this long between expansions [s]")
@@ -54,6 +56,7 @@ class HdrExpander(Node):
         self.last_time_ns: int | None = None
         self.expansions = 0
         self.bad: Counter[str] = Counter()
+        self.empty_clouds = 0
 
     def _bad(self, reason: str, text: str) -> None:
         self.bad[reason] += 1
@@ -67,8 +70,8 @@ class HdrExpander(Node):
                 return
             self.photo = np.asarray(msg.data, np.float32)
         else:
-            if len(msg) == 0:
-                self._bad("empty_cloud", "empty cloud ignored")
+            if len(msg) == 0:  # a SLAM model before its first fusion: nothing to expand yet, not an error
+                self.empty_clouds += 1
                 return
             grown = self.last_points == 0 or len(msg) >= self.last_points * (1.0 + self.params.min_growth)
             if not grown:
@@ -95,7 +98,7 @@ class HdrExpander(Node):
             with self.ctx.timed("expand"):
                 result = expand_cloud(cloud.points, cloud.colors, self.photo, method=p.method, views=p.views,
                                       transfer=p.transfer, normals=normals, size=p.size,
-                                      ssd_threshold=p.ssd_threshold)
+                                      ssd_threshold=p.ssd_threshold, robust=p.robust)
         except HdrError as e:
             self._bad("expansion", f"cloud of {len(cloud)} points not expanded: {e}")
             return

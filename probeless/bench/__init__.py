@@ -22,6 +22,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "pipeline": ("probeless.bench.pipeline", "full pipeline: per-stage costs, latency, frame rate, drops"),
     "dense": ("probeless.bench.dense", "dense model cubemap rendering vs Open3D raycast"),
     "pano": ("probeless.bench.pano", "360° video IBL: ITMO, diffuse map, compositing, brute force side by side"),
+    "hdr": ("probeless.bench.hdr", "HDR expansion of a 0.8M-point cloud end to end (paper 001, Table 1)"),
 }
 
 __all__ = ["BENCHMARKS"]

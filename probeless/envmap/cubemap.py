@@ -7,7 +7,11 @@ the dense model lands *on top of* the coarse model regardless of depth, the pape
 nearer and more detailed, and replaces walls it also captured). The brightness change Δ is added to
 the dense colours only (the atlas already has it baked in by the texturer).
 
-All colours are camera LDR units 0..1 (sRGB-encoded camera output / 255), as in the atlas. Faces
+All colours are camera LDR units 0..1 (sRGB-encoded camera output / 255), as in the atlas; the map then
+comes out in those units. With ``linear=True`` (:meth:`EnvmapRenderer.set_atlas`, :meth:`~EnvmapRenderer.set_dense`)
+the atlas and the dense colours are instead float linear radiance, unbounded (the HDR expansion of
+:mod:`probeless.hdr.coarse`): uploaded as float32, never clipped to 1 nor sRGB-decoded, and the map comes out in
+linear radiance (give both models in the same units, and Δ = 0: it is in camera LDR units). Faces
 follow :mod:`probeless.messages.lighting` (framebuffer texel (row, col) is cube texel [face, row, col]).
 Known limit: other virtual objects are drawn over the coarse model too, so a wall never hides one
 (exact in convex rooms).
@@ -42,6 +46,17 @@ def unit_sphere(rings: int = 16, segments: int = 32) -> tuple[np.ndarray, np.nda
     a = (i * (segments + 1) + j).ravel()
     b, c, d = a + segments + 1, a + 1, a + segments + 2
     return v.astype("f4"), np.concatenate([np.stack([a, b, c], 1), np.stack([c, b, d], 1)]).astype("i4")
+
+
+def linear_radiance(values: np.ndarray, what: str) -> np.ndarray:
+    """float32 copy of HDR linear radiance (finite, >= 0; uint8 refused: it would be camera LDR codes)."""
+    a = np.asarray(values)
+    if a.dtype == np.uint8 or not np.issubdtype(a.dtype, np.number):
+        raise ProbelessError(f"{what}: linear radiance must be floats, got dtype {a.dtype}")
+    a = a.astype("f4")
+    if not np.isfinite(a).all() or (a < 0).any():
+        raise ProbelessError(f"{what}: linear radiance must be finite and >= 0")
+    return a
 
 
 def ldr_colors(colors: np.ndarray, what: str) -> np.ndarray:
@@ -90,10 +105,12 @@ def prefilter(faces: np.ndarray, levels: int) -> list[tuple[float, np.ndarray]]:
 
 
 class EnvmapRenderer:
-    """Renders (6, S, S, 3) camera-LDR cubemaps from the textured coarse model, a dense model and spheres."""
+    """Renders (6, S, S, 3) camera-LDR (or linear HDR) cubemaps from the textured coarse model, a dense model
+    and spheres."""
 
     def __init__(self, layout: AtlasLayout, *, ctx: moderngl.Context | None = None):
         self.ctx = ctx or create_context()
+        self.ctx.__enter__()  # current while its objects are made (another context may be current)
         self.layout = layout
         v, t, uv, _ = coarse_mesh(layout)
         self.coarse_prog = load_program(self.ctx, "cube_coarse", shader_dir=SHADERS, vertex="textured_mesh")
@@ -112,44 +129,62 @@ class EnvmapRenderer:
         self.layout_padding = 2  # layout_atlas's default ring of texels around every rectangle
         self.atlas_tex = None
         self.dense = None  # (vao, buffers, mode)
+        self.dense_linear = False  # the dense colours are linear radiance (set_dense(..., linear=True))
         self._points = self._bucket_key = self._bucket_ibo = None  # points, and per-face index buckets
         self._fbos: dict[int, moderngl.Framebuffer] = {}
 
     @current_context
-    def set_atlas(self, atlas: np.ndarray) -> None:
-        """Upload the atlas image (H, W, 3|4) uint8 (or float 0..1), row 0 = top; alpha is ignored."""
+    def set_atlas(self, atlas: np.ndarray, linear: bool = False) -> None:
+        """Upload the atlas image (H, W, 3|4) uint8 (or float 0..1), row 0 = top; alpha is ignored.
+
+        ``linear``: the atlas is float linear radiance >= 0 (HDR), uploaded as float32 unchanged.
+        """
         img = np.asarray(atlas)
         want = (self.layout.height, self.layout.width)
         if img.ndim != 3 or img.shape[:2] != want or img.shape[2] not in (3, 4):
             raise ProbelessError(f"EnvmapRenderer.set_atlas: atlas is {img.shape}, the layout needs {want + (3,)} "
                                  f"or {want + (4,)}")
-        if img.dtype != np.uint8:
+        if linear:
+            img = linear_radiance(img[..., :3], "EnvmapRenderer.set_atlas")
+        elif img.dtype != np.uint8:
             img = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
         # mip levels beyond the padding ring would blend neighbouring surfaces' rectangles
         self.atlas_tex = upload_texture(self.ctx, img[::-1, :, :3], self.atlas_tex, filter="trilinear", repeat=True,
                                         max_mip_level=max(0, int(np.log2(max(1, self.layout_padding)))))
 
     @current_context
-    def set_dense(self, points: np.ndarray, colors: np.ndarray) -> None:
-        """Dense model as coloured points (N, 3) world [m]; colours uint8 0..255 or float 0..1 camera LDR."""
+    def set_dense(self, points: np.ndarray, colors: np.ndarray, linear: bool = False) -> None:
+        """Dense model as coloured points (N, 3) world [m]; colours uint8 0..255 or float 0..1 camera LDR,
+        or with ``linear`` float linear radiance >= 0 (HDR, never clamped)."""
         p = np.asarray(points, "f4")
         if p.ndim != 2 or p.shape[1] != 3 or len(p) != len(colors):
             raise ProbelessError(f"EnvmapRenderer.set_dense: points {p.shape} and colours {np.shape(colors)} "
                                  f"must be (N, 3) each")
-        self._set_dense(p, ldr_colors(colors, "set_dense"), None, moderngl.POINTS)
+        self._set_dense(p, self._colors(colors, linear, "set_dense"), None, moderngl.POINTS, linear)
         self._points = p
 
     @current_context
-    def set_dense_mesh(self, vertices: np.ndarray, triangles: np.ndarray, vertex_colors: np.ndarray) -> None:
-        """Dense model as a vertex-coloured triangle mesh (colours as in :meth:`set_dense`)."""
+    def set_dense_mesh(self, vertices: np.ndarray, triangles: np.ndarray, vertex_colors: np.ndarray,
+                       linear: bool = False) -> None:
+        """Dense model as a vertex-coloured triangle mesh (colours and ``linear`` as in :meth:`set_dense`)."""
         v, t = np.asarray(vertices, "f4"), np.asarray(triangles, "i4")
         if v.ndim != 2 or v.shape[1] != 3 or len(v) != len(vertex_colors) or t.ndim != 2 or t.shape[1] != 3:
             raise ProbelessError(f"EnvmapRenderer.set_dense_mesh: vertices {v.shape}, colours "
                                  f"{np.shape(vertex_colors)}, triangles {t.shape}")
-        self._set_dense(v, ldr_colors(vertex_colors, "set_dense_mesh"), t, moderngl.TRIANGLES)
+        self._set_dense(v, self._colors(vertex_colors, linear, "set_dense_mesh"), t, moderngl.TRIANGLES, linear)
 
-    def _set_dense(self, p, c, tris, mode) -> None:
+    @staticmethod
+    def _colors(colors: np.ndarray, linear: bool, what: str) -> np.ndarray:
+        if not linear:
+            return ldr_colors(colors, what)
+        c = linear_radiance(colors, what)
+        if c.ndim != 2 or c.shape[1] != 3:
+            raise ProbelessError(f"{what}: colours must be (N, 3), got {c.shape}")
+        return c
+
+    def _set_dense(self, p, c, tris, mode, linear: bool = False) -> None:
         self.clear_dense()
+        self.dense_linear = bool(linear)
         self._points, self._bucket_key, self._bucket_ibo = None, None, None
         if len(p) == 0 or (tris is not None and len(tris) == 0):
             return
@@ -196,7 +231,8 @@ class EnvmapRenderer:
     @current_context
     def render(self, position, size: int = 256, delta=(0.0, 0.0, 0.0), dense: bool = True, splat_m: float = 0.02,
                max_splat_px: float = 64.0, spheres=(), finish: bool = True) -> np.ndarray:
-        """(6, S, S, 3) float32 camera-LDR cubemap at ``position`` (3,) world [m].
+        """(6, S, S, 3) float32 camera-LDR cubemap at ``position`` (3,) world [m] (linear radiance when the
+        models were given ``linear``: module docstring).
 
         ``splat_m``: world diameter of a point splat (about the dense model's point spacing) [m];
         ``spheres``: other virtual objects as ``(centre (3,), radius [m], colour (3,) LDR 0..1)``.
@@ -232,6 +268,8 @@ class EnvmapRenderer:
                 dp["clip_from_world"].write(m)
                 if "round_splats" in dp:
                     dp["round_splats"] = mode == moderngl.POINTS
+                if "linear_hdr" in dp:
+                    dp["linear_hdr"] = self.dense_linear
                 if buckets is None:
                     vao.render(mode)
                 elif buckets[face][1]:

@@ -115,49 +115,79 @@ def _dense_mask(renderer: EnvmapRenderer, points, position, size) -> np.ndarray:
     return faces.max(axis=3) > 0.5
 
 
-def run_variant(r: Rendered, variant: str, methods: list[str], *, atlas_size: int, face_size: int,
-                results: dict[str, MethodResult], show_progress: bool) -> None:
-    """One coarse-model run (or the baseline when ``variant`` is None) scoring every method that uses it."""
+@dataclass
+class Replay:
+    """The models one replay of the frames drives (:func:`make_replay`, :func:`replay`): the coarse model
+    (None for the baseline) or the baseline map, the dense points and the summed Δ."""
+
+    coarse: CoarseModel | None
+    base: BaselineMap | None
+    dense: DensePoints
+    delta_sum: np.ndarray
+    fov: float
+    use_delta: bool = False
+    sample: np.ndarray | None = None
+
+    def release(self) -> None:
+        """Free the coarse model's GL objects."""
+        if self.coarse is not None:
+            self.coarse.release()
+
+
+def make_replay(r: Rendered, variant: str | None, *, atlas_size: int, face_size: int) -> Replay:
+    """Fresh models for one run of ``variant`` (a coarse-model variant, or None: the baseline map)."""
     scene, ctx = r.scene, r.rig.renderer.ctx
     fov = scene.fisheye.fov_deg - FOV_MARGIN_DEG
-    objects = scene.virtual_objects
-    dense = DensePoints(np.array([o.position for o in objects]))
-    delta_sum = np.zeros(3)
+    dense = DensePoints(np.array([o.position for o in scene.virtual_objects]))
     if variant is None:
-        base = BaselineMap(face_size, r.model, fov)
-        coarse = None
-        renderer = EnvmapRenderer(_dummy_layout(scene), ctx=ctx)
-    else:
-        config, use_delta = _coarse_config(variant, atlas_size, fov)
-        coarse = CoarseModel(scene.floorplan, scene.ceiling_height, config, ctx=ctx)
-        sample = draw_sample(coarse.texmap, 65536, seed=0)
-        renderer = EnvmapRenderer(coarse.layout, ctx=ctx)
-    K = scene.rgbd.K
-    with progress(len(r.events), f"{variant or 'baseline'}", enabled=show_progress) as tick:
+        return Replay(None, BaselineMap(face_size, r.model, fov), dense, np.zeros(3), fov)
+    config, use_delta = _coarse_config(variant, atlas_size, fov)
+    coarse = CoarseModel(scene.floorplan, scene.ceiling_height, config, ctx=ctx)
+    return Replay(coarse, None, dense, np.zeros(3), fov, use_delta, draw_sample(coarse.texmap, 65536, seed=0))
+
+
+def replay(r: Rendered, state: Replay, *, on_eval=None, show_progress: bool = True, label: str = "") -> Replay:
+    """Drive ``state``'s models over the frames in stamp order, as the graph's nodes would (module doc);
+    ``on_eval(t, state)`` at each evaluation time. Returns ``state``."""
+    scene, K = r.scene, r.scene.rgbd.K
+    with progress(len(r.events), label, enabled=show_progress) as tick:
         for kind, t, _, payload in r.events:
             tick()
             if kind == "rgbd":
                 rgb, depth, pose = payload
-                dense.add(rgb.astype(np.float64) - delta_sum * 255.0, depth, K, pose)
+                state.dense.add(rgb.astype(np.float64) - state.delta_sum * 255.0, depth, K, pose)
                 continue
             image, pose, _ = payload
-            if coarse is None:
-                base.update(image, pose)
+            if state.coarse is None:
+                state.base.update(image, pose)
             else:
+                coarse = state.coarse
                 delta = np.zeros(3, np.float32)
-                if use_delta and coarse.frames > 0:
+                if state.use_delta and coarse.frames > 0:
                     packed = coarse.gpu.read_packed()
                     delta, _ = estimate_delta(packed[..., :3], packed[..., 3] > 0, coarse.texmap, image, r.model,
-                                              pose, fov, scene.floorplan, sample_idx=sample)
+                                              pose, state.fov, scene.floorplan, sample_idx=state.sample)
                     delta = apply_deadband(delta)
                 coarse.step(image, r.model, pose, delta, t)
-                delta_sum += delta
-            if t in r.eval_times:
-                _score_step(r, t, coarse, base if coarse is None else None, renderer, dense, delta_sum, methods,
-                            face_size, results)
+                state.delta_sum += delta
+            if t in r.eval_times and on_eval is not None:
+                on_eval(t, state)
+    return state
+
+
+def run_variant(r: Rendered, variant: str, methods: list[str], *, atlas_size: int, face_size: int,
+                results: dict[str, MethodResult], show_progress: bool) -> None:
+    """One coarse-model run (or the baseline when ``variant`` is None) scoring every method that uses it."""
+    state = make_replay(r, variant, atlas_size=atlas_size, face_size=face_size)
+    layout = _dummy_layout(r.scene) if state.coarse is None else state.coarse.layout
+    renderer = EnvmapRenderer(layout, ctx=r.rig.renderer.ctx)
+
+    def on_eval(t: float, st: Replay) -> None:
+        _score_step(r, t, st.coarse, st.base, renderer, st.dense, st.delta_sum, methods, face_size, results)
+
+    replay(r, state, on_eval=on_eval, show_progress=show_progress, label=f"{variant or 'baseline'}")
     renderer.release()
-    if coarse is not None:
-        coarse.release()
+    state.release()
 
 
 def _dummy_layout(scene):

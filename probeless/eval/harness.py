@@ -58,6 +58,9 @@ EVALUATIONS: dict[str, Evaluation] = {
                        old="pano itmo"),
     "hdr-expand": Evaluation("probeless.eval.hdr_expand", "HDR expansion of an LDR cloud (paper 001, §6.2): cloud "
                                                           "radiance and lit spheres vs synthetic ground truth"),
+    "hdr-envmap": Evaluation("probeless.eval.hdr_envmap", "HDR coarse and dense models (paper 001 §4 on paper 003's "
+                                                          "models): environment maps vs the rig's linear truth, "
+                                                          "LDR vs HDR"),
 }
 
 # help of a command group that only holds old spellings (created by add_old_spellings)

@@ -8,12 +8,24 @@ method (``ldr``: the unexpanded LDR colours, a baseline; then the methods of
 
 * ``cloud_rms`` / ``cloud_rms_overexposed``: RMS over points and channels of expanded - true radiance,
   all points / the over-exposed ones (:func:`probeless.hdr.transfer.overexposed` of the LDR colours);
-* ``diffuse_rms`` / ``diffuse_ssim``, ``mirror_rms`` / ``mirror_ssim``: a cubemap of each cloud at the
-  scene's first virtual object (:meth:`SplatRenderer.render_cubemap`, holes 0 in both) lights a Lambertian
-  sphere (:func:`render_diffuse_sphere`, albedo 1) and a mirror sphere (:func:`render_mirror_sphere`, the
-  stand-in for a glossy GGX sphere: no GGX helper exists here), seen from +X; RMS over the sphere's pixels
-  of the expanded-cloud sphere minus the true-cloud sphere; SSIM (:func:`ssim_image`) with the data range
-  the true sphere's maximum. One viewpoint only.
+* ``diffuse_rms`` / ``diffuse_ssim``, ``ggx_rms`` / ``ggx_ssim``: the cubemap path. A cubemap of each cloud
+  at the scene's first virtual object (:meth:`SplatRenderer.render_cubemap`, ``--face`` px; texels no
+  point covers are 0, and they are the same texels for every method since the same points are splatted)
+  lights, through the IBL renderer (:class:`probeless.ibl.render.IblRenderer`, no contact shadow, exposure
+  1), a UV sphere of the object's radius at its position: a ``diffuse`` one (:class:`Diffuse`, albedo 1,
+  SH irradiance of the cubemap, 5 bands) and a ``ggx`` one (:class:`Metal`, colour 1, ``--roughness``,
+  default 0.3), both drawn by :class:`probeless.ibl.probes.ProbeRenderer`. The GGX sphere reads a level
+  prefiltered with the GGX lobe (:func:`probeless.ibl.ggx.ggx_prefilter`: split-sum radiance with n = v = r,
+  weights D(h) (n.l) dω, alpha = roughness², Karis 2013) handed to the renderer as the :class:`Lighting`
+  level of that roughness (the renderer's own fallback, a box mip chain, is not GGX); the renderer applies
+  no Fresnel or shadowing-masking term. Each sphere is seen from two viewpoints
+  (:func:`viewpoints`: ``--image`` px pinholes at 4 object radii from the centre towards the first and the
+  last trajectory keyframe, so inside the room, looking at the centre). The rendering lit by the expanded
+  cloud is compared with the one lit by the true cloud: RMS over the sphere's pixels (the object mask) and
+  channels, and SSIM (:func:`skimage.metrics.structural_similarity`, Wang et al. 2004 settings: Gaussian
+  window sigma 1.5, population covariances; data range the true rendering's maximum; per channel) averaged
+  over the sphere's pixels of the SSIM map (the black background would add SSIM 1 everywhere else). The
+  ``diffuse_*`` / ``ggx_*`` values are the means over the two viewpoints; ``views`` holds them per viewpoint.
 
 Where the HDR photo looks matters (``--photo-target``): a photo that also sees a ceiling lamp lets
 PatchMatch match saturated white patches of the cloud to the lamp (convex_room with ``overexposed``), and
@@ -24,16 +36,24 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from probeless.eval.harness import add_common_options, emit
+from probeless.ibl.probes import OBJECTS
 
 BASELINE = "ldr"
-UNITS = {"cloud_rms": "cloud units (exposure x linear radiance; 1 = LDR white)",
-         "diffuse_rms": "cloud units, Lambertian sphere (albedo 1) lit by the cloud's cubemap",
-         "mirror_rms": "cloud units, mirror sphere (stand-in for GGX: no GGX helper) lit by the cloud's cubemap",
-         "ssim": "mean SSIM, data range = the true sphere's maximum"}
+GGX_ROUGHNESS = 0.3   # perceptual roughness of the GGX sphere (alpha = roughness^2)
+VIEW_DISTANCE = 4.0   # camera distance from the object's centre [object radii]
+VIEW_FILL = 0.8       # the sphere's silhouette spans this fraction of the image width
+UNITS = {"cloud_rms": "cloud units (exposure x linear radiance; 1 = LDR white), over points and channels",
+         "diffuse_rms": "cloud units, over the pixels of a Lambertian sphere (albedo 1) lit by the cloud's "
+                        "cubemap, mean of two viewpoints",
+         "ggx_rms": "cloud units, over the pixels of a GGX sphere (colour 1, roughness in 'roughness') lit by the "
+                    "cloud's cubemap, mean of two viewpoints",
+         "ssim": "skimage SSIM (Gaussian sigma 1.5, population covariances, data range = the true rendering's "
+                 "maximum) averaged over the sphere's pixels, mean of two viewpoints"}
 
 
 def all_methods() -> tuple[str, ...]:
@@ -43,7 +63,8 @@ def all_methods() -> tuple[str, ...]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    """``probeless eval hdr-expand SCENE... [--methods ...] [--views N] [--size PX] [--json] [--figure OUT.png]``."""
+    """``probeless eval hdr-expand SCENE... [--methods ...] [--views N] [--size PX] [--json] [--figure OUT.png]
+    [--pictures DIR]``."""
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene YAML files (launch/scenes/*.yaml)")
     p.add_argument("--methods", nargs="+", metavar="METHOD",
                    help="ldr (baseline) and expand_cloud methods (default: all)")
@@ -59,84 +80,149 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="aim the HDR photo at the over-exposed points' centroid or the trajectory's look-at "
                         "(default overexposed; synthetic_case)")
     p.add_argument("--face", type=int, default=64, help="cubemap face size at the object [px] (default 64)")
-    p.add_argument("--sphere", type=int, default=64, help="sphere image size [px] (default 64)")
-    add_common_options(p, figure=("--figure", "bar chart of the sphere rendering RMS per method and scene"))
+    p.add_argument("--image", "--sphere", dest="image", type=int, default=128,
+                   help="size of the object renderings [px], square (default 128)")
+    p.add_argument("--no-robust", action="store_true",
+                   help="pmatch: the paper's raw field, no rejection of values disagreeing with their clipped cluster")
+    p.add_argument("--roughness", type=float, default=GGX_ROUGHNESS,
+                   help=f"perceptual roughness of the GGX sphere, alpha = roughness^2 (default {GGX_ROUGHNESS})")
+    p.add_argument("--pictures", metavar="DIR",
+                   help="write DIR/<scene>.png: each method's GGX and diffuse renderings next to the truth")
+    add_common_options(p, figure=("--figure", "bar chart of the rendering RMS per method and scene"))
 
 
-def cloud_cubemap(renderer, points, colors, spacing, position, face: int) -> np.ndarray:
-    """(6, face, face, 3) float64 cubemap of the cloud's colours at ``position`` (0 where no point)."""
+# --- lighting: cubemap of a cloud, GGX prefilter --------------------------------------------------
+
+def cloud_cubemap(renderer, points, colors, spacing, position, face: int) -> tuple[np.ndarray, np.ndarray]:
+    """((6, face, face, 3) float32 cubemap of the cloud's colours at ``position``, 0 where no point;
+    (6, face, face) bool: a point covers the texel)."""
     views = renderer.render_cubemap(points, colors.astype(np.float32), spacing, np.asarray(position, np.float64),
                                     face)
-    return np.stack([v.color for v in views]).astype(np.float64)
+    return np.stack([v.color for v in views]).astype(np.float32), np.stack([v.mask for v in views])
 
 
-def spheres(faces: np.ndarray, size: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    from probeless.envmap.metrics import render_diffuse_sphere, render_mirror_sphere
+def viewpoints(centre, radius: float, towards, size: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """[(K, world_from_camera)] of pinholes ``size`` px square at ``VIEW_DISTANCE`` radii from ``centre``
+    towards each point of ``towards`` (clamped to that point), looking at ``centre``, the sphere's
+    silhouette spanning ``VIEW_FILL`` of the image width."""
+    from probeless.hdr.views import camera_looking_at
 
-    return {"diffuse": render_diffuse_sphere(faces, size), "mirror": render_mirror_sphere(faces, size)}
-
-
-def compare_spheres(est: dict, ref: dict) -> dict[str, float]:
-    from probeless.envmap.metrics import ssim_image
-
-    out = {}
-    for kind in ("diffuse", "mirror"):
-        (a, inside), (b, _) = est[kind], ref[kind]
-        out[f"{kind}_rms"] = float(np.sqrt(np.mean((a[inside] - b[inside]) ** 2)))
-        out[f"{kind}_ssim"] = ssim_image(a, b, data_range=max(float(b.max()), 1e-6))
+    c = np.asarray(centre, np.float64)
+    out = []
+    for t in towards:
+        d = np.asarray(t, np.float64) - c
+        dist = min(VIEW_DISTANCE * radius, float(np.linalg.norm(d)))
+        half = np.degrees(np.arcsin(min(radius / dist, 0.99)))
+        fov = min(2.0 * np.degrees(np.arctan(np.tan(np.radians(half)) / VIEW_FILL)), 170.0)
+        out.append(camera_looking_at(c + dist * d / np.linalg.norm(d), c, fov, (size, size)))
     return out
+
+
+def ssim_masked(est: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
+    """skimage SSIM (Wang et al. settings, data range ``ref.max()``) averaged over the ``mask`` pixels."""
+    from skimage.metrics import structural_similarity
+
+    _, smap = structural_similarity(est, ref, data_range=max(float(ref.max()), 1e-6), channel_axis=-1,
+                                    gaussian_weights=True, sigma=1.5, use_sample_covariance=False, full=True)
+    return float(smap[mask].mean())
+
+
+def compare_renderings(est: dict, ref: dict) -> dict:
+    """``<object>_rms`` / ``<object>_ssim`` means over the viewpoints, and ``views``: the same per viewpoint."""
+    views = []
+    for i in range(len(ref[OBJECTS[0]])):
+        row = {}
+        for kind in OBJECTS:
+            (a, _), (b, inside) = est[kind][i], ref[kind][i]
+            row[f"{kind}_rms"] = float(np.sqrt(np.mean((a[inside] - b[inside]) ** 2)))
+            row[f"{kind}_ssim"] = ssim_masked(a, b, inside)
+        views.append(row)
+    means = {k: float(np.mean([v[k] for v in views])) for k in views[0]}
+    return {**means, "views": views}
 
 
 def rms(a: np.ndarray, b: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean((a.astype(np.float64) - b) ** 2))) if len(a) else None
 
 
-def evaluate_scene(scene_path: str, methods, ns, tick) -> dict:
+# --- one scene ------------------------------------------------------------------------------------
+
+def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = None) -> dict:
+    """The scene's result; ``images`` (when given) receives {"truth" | method: renderings} for ``--pictures``."""
+    from probeless.geom.cube import cube_solid_angles
+    from probeless.gl.context import create_context
     from probeless.hdr.expand import expand_cloud
     from probeless.hdr.splat import SplatRenderer, point_spacing
     from probeless.hdr.synthetic import synthetic_case
     from probeless.hdr.transfer import overexposed
+    from probeless.ibl.probes import ProbeRenderer
+    from probeless.scene.parse import load_scene
 
+    scene = load_scene(scene_path)
     case = synthetic_case(scene_path, frames=ns.frames, scale=ns.scale, voxel=ns.voxel, exposure=ns.exposure,
                           photo_exposure=ns.photo_exposure, photo_target=ns.photo_target)
+    radius = float(scene.virtual_objects[0].radius)
+    towards = [scene.keyframes[0].position, scene.keyframes[-1].position]
+    cameras = viewpoints(case.object_position, radius, towards, ns.image)
     truth = case.truth_cloud_units.astype(np.float64)
     over = overexposed(case.ldr_colors)
     spacing = point_spacing(case.points)
-    renderer = SplatRenderer()
+    ctx = create_context()
+    splat = objects = None
     try:
-        ref = spheres(cloud_cubemap(renderer, case.points, truth, spacing, case.object_position, ns.face), ns.sphere)
+        splat = SplatRenderer(ctx)
+        objects = ProbeRenderer(ctx, case.object_position, radius, ns.roughness, cameras, ns.image)
+        true_faces, covered = cloud_cubemap(splat, case.points, truth, spacing, case.object_position, ns.face)
+        ref = objects.render(true_faces)
+        if images is not None:
+            images["truth"] = ref
+        tick()
         rows = {}
         for m in methods:
             if m == BASELINE:
                 radiance, report = case.ldr_colors, {}
             else:
                 res = expand_cloud(case.points, case.ldr_colors, case.photo_hdr, method=m, views=ns.views,
-                                   size=ns.size)
+                                   size=ns.size, robust=not getattr(ns, "no_robust", False))
                 radiance, report = res.radiance, res.report
-            est = spheres(cloud_cubemap(renderer, case.points, radiance, spacing, case.object_position, ns.face),
-                          ns.sphere)
+            faces, _ = cloud_cubemap(splat, case.points, radiance, spacing, case.object_position, ns.face)
+            est = objects.render(faces)
+            if images is not None:
+                images[m] = est
             rows[m] = {"cloud_rms": rms(radiance, truth), "cloud_rms_overexposed": rms(radiance[over], truth[over]),
-                       **compare_spheres(est, ref),
+                       **compare_renderings(est, ref),
                        "alpha": report.get("alpha"), "points_expanded": report.get("points_expanded"),
-                       "points_filled": report.get("points_filled")}
+                       "points_filled": report.get("points_filled"), "points_rejected": report.get("points_rejected")}
             tick()
     finally:
-        renderer.release()
+        for r in (objects, splat):
+            if r is not None:
+                r.release()
+        ctx.release()
+    omega = cube_solid_angles(ns.face)
     return {"scene": case.scene, "points": int(len(case.points)), "points_overexposed": int(over.sum()),
             "true_radiance_max": float(case.true_radiance.max()), "exposure": case.exposure,
-            "photo_exposure": case.photo_exposure,
-            "object_position": case.object_position.tolist(), "methods": rows}
+            "photo_exposure": case.photo_exposure, "object_position": case.object_position.tolist(),
+            "object_radius": radius, "cubemap_hole_fraction": float(omega[~covered].sum() / omega.sum()),
+            "viewpoints": [{"position": pose[:3, 3].tolist(), "fov_deg": float(np.degrees(2 * np.arctan(
+                ns.image / 2 / K[0, 0])))} for K, pose in cameras],
+            "methods": rows}
+
+
+# --- output ---------------------------------------------------------------------------------------
+
+COLUMNS = ("cloud_rms", "cloud_rms_overexposed", "diffuse_rms", "diffuse_ssim", "ggx_rms", "ggx_ssim")
 
 
 def format_table(result: dict) -> str:
-    cols = ("cloud_rms", "cloud_rms_overexposed", "diffuse_rms", "diffuse_ssim", "mirror_rms", "mirror_ssim")
-    lines = []
+    lines = [f"renderings: diffuse sphere (albedo 1) and GGX sphere (roughness {result['roughness']}), "
+             f"two viewpoints each (mean shown); RMS in cloud units"]
     for s in result["scenes"]:
         lines.append(f"{s['scene']}: {s['points']} points, {s['points_overexposed']} over-exposed, "
-                     f"true max {s['true_radiance_max']:.3g}")
-        lines.append(f"  {'method':<12}" + "".join(f"{c:>23}" for c in cols))
+                     f"true max {s['true_radiance_max']:.3g}, cubemap holes {100 * s['cubemap_hole_fraction']:.1f}%")
+        lines.append(f"  {'method':<12}" + "".join(f"{c:>23}" for c in COLUMNS))
         for m, row in s["methods"].items():
-            cells = "".join(f"{'-' if row[c] is None else format(row[c], '.4g'):>23}" for c in cols)
+            cells = "".join(f"{'-' if row[c] is None else format(row[c], '.4g'):>23}" for c in COLUMNS)
             lines.append(f"  {m:<12}{cells}")
     return "\n".join(lines)
 
@@ -149,18 +235,61 @@ def figure(result: dict, path: str) -> None:
 
     scenes = result["scenes"]
     methods = list(scenes[0]["methods"]) if scenes else []
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4))
+    fig, axes = plt.subplots(1, 3, figsize=(17, 4))
     width = 0.8 / max(1, len(methods))
     x = np.arange(len(scenes))
-    for ax, kind in zip(axes, ("diffuse_rms", "mirror_rms")):
+    for ax, kind in zip(axes, ("cloud_rms_overexposed", "diffuse_rms", "ggx_rms")):
         for i, m in enumerate(methods):
-            ax.bar(x + i * width, [s["methods"][m][kind] for s in scenes], width, label=m)
+            values = [s["methods"][m][kind] for s in scenes]
+            ax.bar(x + i * width, [v if v is not None and v > 0 else np.nan for v in values], width, label=m)
+        ax.set_yscale("log")  # the inverse tone-mapping operators overshoot some scenes by orders of magnitude
         ax.set_xticks(x + 0.4 - width / 2, [s["scene"] for s in scenes], rotation=15)
         ax.set_ylabel(f"{kind} [cloud units]")
-        ax.set_title(kind.replace("_", " "))
+        ax.set_title(f"{kind.replace('_', ' ')} (log axis; 0 not drawn)")
     axes[0].legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def tone_map(img: np.ndarray, white: float) -> np.ndarray:
+    """sRGB-encoded ``img / white`` clipped to [0, 1] (the same ``white`` for every method of a column)."""
+    from probeless.color import linear_to_srgb
+
+    return np.clip(linear_to_srgb(np.clip(img / max(white, 1e-6), 0.0, 1.0)), 0.0, 1.0)
+
+
+def pictures(scene: dict, images: dict, path: Path) -> None:
+    """One PNG: rows truth and each method; columns GGX and diffuse from each viewpoint (tone-mapped, white =
+    the 99th percentile of the truth's sphere pixels in that column)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = ["truth", *scene["methods"]]
+    cols = [(kind, i) for kind in ("ggx", "diffuse") for i in range(len(images["truth"][kind]))]
+    white = {}
+    for kind, i in cols:
+        img, mask = images["truth"][kind][i]
+        white[kind, i] = float(np.percentile(img[mask], 99)) if mask.any() else 1.0
+    fig, axes = plt.subplots(len(rows), len(cols), figsize=(2.0 * len(cols), 2.0 * len(rows)), squeeze=False)
+    for r, name in enumerate(rows):
+        for c, (kind, i) in enumerate(cols):
+            ax = axes[r, c]
+            ax.imshow(tone_map(images[name][kind][i][0], white[kind, i]))
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(f"{kind}, view {i + 1}", fontsize=9)
+            if name != "truth":
+                v = scene["methods"][name]["views"][i]
+                ax.set_xlabel(f"rms {v[f'{kind}_rms']:.3g} ssim {v[f'{kind}_ssim']:.3f}", fontsize=7)
+            if c == 0:
+                ax.set_ylabel(name, fontsize=9)
+    fig.suptitle(f"{scene['scene']}: spheres lit by each cloud's cubemap (white = truth's 99th pct)", fontsize=10)
+    fig.tight_layout(rect=(0, 0, 1, 0.98))
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
@@ -173,12 +302,26 @@ def run(ns: argparse.Namespace) -> int:
     unknown = [m for m in methods if m not in choices]
     if unknown:
         raise HdrError(f"unknown method {', '.join(map(repr, unknown))}; choices: {', '.join(choices)}")
+    if not 0.0 <= ns.roughness <= 1.0:
+        raise HdrError(f"--roughness must be in [0, 1], got {ns.roughness}")
+    if ns.image < 16 or ns.face < 1:
+        raise HdrError(f"--image must be >= 16 px and --face >= 1, got {ns.image}, {ns.face}")
+    out_dir = Path(ns.pictures) if ns.pictures else None
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
     scenes = []
-    with progress(len(ns.scenes) * len(methods), "hdr-expand", enabled=not ns.no_progress) as tick:
+    with progress(len(ns.scenes) * (len(methods) + 1), "hdr-expand", enabled=not ns.no_progress) as tick:
         for path in ns.scenes:
-            scenes.append(evaluate_scene(path, methods, ns, tick))
+            images = {} if out_dir is not None else None
+            scene = evaluate_scene(path, methods, ns, tick, images)
+            if out_dir is not None:
+                scene["pictures"] = str(out_dir / f"{scene['scene']}.png")
+                pictures(scene, images, Path(scene["pictures"]))
+                print(f"wrote {scene['pictures']}", file=sys.stderr)
+            scenes.append(scene)
     result = {"methods": methods, "views": ns.views, "size": ns.size, "photo_target": ns.photo_target,
-              "units": UNITS, "scenes": scenes}
+              "robust": not ns.no_robust,
+              "face": ns.face, "image": ns.image, "roughness": ns.roughness, "units": UNITS, "scenes": scenes}
     if ns.figure:
         figure(result, ns.figure)
         result["figure"] = ns.figure

@@ -1,4 +1,5 @@
-"""``probeless hdr expand``: HDR expansion of an LDR coloured point cloud from one HDR photo (paper 001, §4).
+"""``probeless hdr expand``: HDR expansion of an LDR coloured point cloud from one HDR photo (paper 001, §4);
+``probeless hdr photo``: the HDR photo of a synthetic scene (:mod:`probeless.hdr.synthetic`), as a file.
 
 Writes the HDR cloud (:func:`probeless.hdr.io.write_hdr_ply`: float32 linear radiance in ``red green
 blue``) and the report of :func:`probeless.hdr.expand.expand_cloud` as ``OUT.json`` beside it.
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -138,11 +140,13 @@ def cmd_expand(ns: argparse.Namespace) -> int:
     from probeless.jsonio import dumps, print_json
     from probeless.pano.sources import read_panorama
 
+    t0 = time.perf_counter()
     points, ldr, normals = read_cloud(ns.cloud)
     try:
         photo = read_panorama(str(ns.photo))
     except ProbelessError as exc:
         raise HdrError(str(exc)) from None
+    read_ms = (time.perf_counter() - t0) * 1e3
     out = Path(ns.output)
     if out.suffix.lower() != ".ply":
         raise HdrError(f"{out}: the output must be a .ply file")
@@ -155,9 +159,13 @@ def cmd_expand(ns: argparse.Namespace) -> int:
         views = rows
     with StageBars(not ns.no_progress) as bars:
         result = expand_cloud(points, ldr, photo, method=ns.method, views=views, transfer=ns.transfer,
-                              normals=normals, size=ns.size, ssd_threshold=ns.ssd_threshold, progress=bars)
+                              normals=normals, size=ns.size, ssd_threshold=ns.ssd_threshold,
+                              robust=not ns.no_robust, progress=bars)
+    t0 = time.perf_counter()
     write_hdr_ply(out, points, result.radiance, normals)
-    report = {"cloud": str(ns.cloud), "photo": str(ns.photo), "output": str(out), **result.report}
+    timings = {"read": read_ms, **result.report["timings_ms"], "write": (time.perf_counter() - t0) * 1e3}
+    report = {"cloud": str(ns.cloud), "photo": str(ns.photo), "output": str(out), **result.report,
+              "timings_ms": timings}
     if ns.figures:
         report["figures"] = [str(p) for p in write_figures(ns.figures, points, ldr, result)]
     out.with_suffix(".json").write_text(dumps(report, indent=2) + "\n")
@@ -176,8 +184,33 @@ def cmd_expand(ns: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_photo(ns: argparse.Namespace) -> int:
+    """Write the HDR photo of :func:`probeless.hdr.synthetic.synthetic_case` as Radiance .hdr (or OpenEXR)."""
+    from probeless.hdr.synthetic import synthetic_case
+    from probeless.pano.sources import write_hdr_image
+
+    out = Path(ns.output)
+    if out.suffix.lower() not in (".hdr", ".exr"):
+        raise HdrError(f"{out}: the photo must be a .hdr or .exr file")
+    if not out.parent.is_dir():
+        raise HdrError(f"{out.parent}: output directory not found")
+    if not Path(ns.scene).is_file():
+        raise HdrError(f"{ns.scene}: scene file not found")
+    w, h = ns.size
+    if not (8 <= w <= 8192 and 8 <= h <= 8192):
+        raise HdrError(f"--size: expected W H in 8..8192, got {w} {h}")
+    case = synthetic_case(ns.scene, photo_exposure=ns.exposure, photo_size=(w, h), photo_target=ns.target)
+    try:
+        write_hdr_image(out, case.photo_hdr)
+    except ProbelessError as exc:
+        raise HdrError(str(exc)) from None
+    print(f"{out}: {w} x {h} HDR photo of {case.scene} from {np.round(case.photo_position, 3).tolist()}, "
+          f"max {float(case.photo_hdr.max()):.4g} (unknown exposure {ns.exposure:g})")
+    return 0
+
+
 def add_hdr_parser(sub) -> None:
-    """``probeless hdr expand``."""
+    """``probeless hdr expand`` and ``probeless hdr photo``."""
     from probeless.hdr.expand import DEFAULT_VIEWS, METHODS
 
     hdr = sub.add_parser("hdr", help="HDR expansion of LDR point clouds (paper 001, section 4)")
@@ -195,7 +228,18 @@ def add_hdr_parser(sub) -> None:
     c.add_argument("--transfer", choices=("rgb", "lum"), default="rgb", help="transfer colour or luminance")
     c.add_argument("--size", type=int, default=1024, help="view width = height [px] (default 1024)")
     c.add_argument("--ssd-threshold", type=float, default=1.0, help="PatchMatch SSD rejection t_h (default 1)")
+    c.add_argument("--no-robust", action="store_true",
+                   help="pmatch: keep values that disagree with their clipped cluster (the paper's raw field)")
     c.add_argument("--figures", metavar="DIR", help="write PNGs of the views and before/after panoramas")
     c.add_argument("--json", action="store_true", help="print the report as one JSON object")
     c.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
     c.set_defaults(func=cmd_expand)
+    ph = hsub.add_parser("photo", help="the HDR photo of a synthetic scene (the truth's viewpoint; .hdr or .exr)")
+    ph.add_argument("scene", help="scene YAML (launch/scenes/*.yaml)")
+    ph.add_argument("-o", "--output", required=True, metavar="OUT.hdr", help="Radiance .hdr or OpenEXR file")
+    ph.add_argument("--size", type=int, nargs=2, default=(320, 240), metavar=("W", "H"),
+                    help="photo size [px] (default 320 240)")
+    ph.add_argument("--exposure", type=float, default=0.37, help="the photo's unknown scale (default 0.37)")
+    ph.add_argument("--target", choices=("overexposed", "look-at"), default="overexposed",
+                    help="aim at the LDR cloud's over-exposed points or the trajectory's look-at (default overexposed)")
+    ph.set_defaults(func=cmd_photo)

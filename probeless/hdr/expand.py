@@ -42,8 +42,15 @@ from probeless.hdr.transfer import (
     inverse_ssd_weights,
     overexposed,
     project_views,
+    reject_cluster_outliers,
 )
-from probeless.hdr.views import camera_looking_at, linear_colors, place_views, views_from_positions
+from probeless.hdr.views import (
+    camera_looking_at,
+    linear_colors,
+    place_views,
+    saturated_clusters,
+    views_from_positions,
+)
 
 METHODS = ("landis", "banterle", "landis-pc", "banterle-pc", "pmatch-lum", "pmatch-rgb")
 DEFAULT_VIEWS = 3
@@ -111,18 +118,22 @@ def pmatch_view(view: View, match, photo: np.ndarray, mode: str, ssd_threshold: 
 
 
 def expand_cloud(points, ldr_colors, photo_hdr, *, method: str, views=None, transfer: str = "rgb", normals=None,
-                 size: int = 1024, ssd_threshold: float = 1.0, progress: Progress | None = None) -> ExpansionResult:
+                 size: int = 1024, ssd_threshold: float = 1.0, robust: bool = True,
+                 progress: Progress | None = None) -> ExpansionResult:
     """HDR radiance for every point of the cloud (the stages of the module docstring).
 
     ``points`` (N, 3) [m]; ``ldr_colors`` (N, 3) linear 0..1 floats or uint8 sRGB codes; ``photo_hdr``
     (H, W, 3) linear radiance, any units (may be None for the operator methods, then ``alpha`` is None);
     ``views``: None (3), a count or explicit positions (:func:`view_cameras`); ``transfer``: ``rgb`` or
-    ``lum`` (:func:`~.transfer.apply_transfer`, also the Poisson mode); ``size``: view width = height [px].
+    ``lum`` (:func:`~.transfer.apply_transfer`, also the Poisson mode); ``size``: view width = height [px];
+    ``robust`` (PatchMatch only; not in the paper): values disagreeing with the rest of their clipped cluster
+    (:func:`~.transfer.reject_cluster_outliers`) are dropped before the Poisson fill (``points_rejected``).
 
     ``report``: ``method``, ``transfer``, ``alpha``, ``views`` (list of {position, look_at}),
     ``points``, ``points_overexposed``, ``points_expanded`` (over-exposed points given a value by the
-    transfer), ``points_filled`` (by Poisson), ``points_left_ldr``, ``unanchored_components``,
-    ``clipped_negative``, ``radiance_max``, ``timings_ms`` per stage.
+    transfer and kept), ``points_rejected`` (by ``robust``), ``points_filled`` (by Poisson),
+    ``points_left_ldr``, ``unanchored_components``, ``clipped_negative``, ``radiance_max``, ``timings_ms``
+    per stage.
     """
     if method not in METHODS:
         raise HdrError(f"unknown method {method!r}; choices: {', '.join(METHODS)}")
@@ -154,6 +165,7 @@ def expand_cloud(points, ldr_colors, photo_hdr, *, method: str, views=None, tran
     timings["exposure"] = (time.perf_counter() - t) * 1e3
 
     cameras, rendered, view_hdr = [], [], []
+    rejected = 0
     over = overexposed(ldr)
     if per_point:
         t = time.perf_counter()
@@ -192,6 +204,8 @@ def expand_cloud(points, ldr_colors, photo_hdr, *, method: str, views=None, tran
         # per-view values are in cloud units already (pmatch samples scaled by alpha above)
         samples, counts = project_views(ids, view_hdr, len(pts), weights if pmatch else None)
         hdr, valid = apply_transfer(ldr, samples, counts, 1.0, transfer)
+        if pmatch and robust:
+            valid, rejected = reject_cluster_outliers(hdr, valid, saturated_clusters(pts, ldr, normals=nrm))
         report_fn("transfer", max(len(rendered), 1), max(len(rendered), 1))
         timings["transfer"] = (time.perf_counter() - t) * 1e3
 
@@ -208,6 +222,7 @@ def expand_cloud(points, ldr_colors, photo_hdr, *, method: str, views=None, tran
         "views": [{"position": p.tolist(), "look_at": q.tolist()} for p, q in cameras],
         "view_size": None if per_point else int(size),
         "points": int(len(pts)), "points_overexposed": int(over.sum()), "points_expanded": expanded,
+        "points_rejected": rejected,
         "points_filled": prep.filled, "points_left_ldr": prep.left_ldr,
         "unanchored_components": prep.unanchored_components, "clipped_negative": prep.clipped_negative,
         "radiance_max": float(radiance.max()), "timings_ms": timings,

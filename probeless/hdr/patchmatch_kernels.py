@@ -5,11 +5,12 @@ Not a public API: the callers validate every argument. Conventions shared with t
 * images are C-contiguous float32 (H, W, C); the *source* arrays passed here are edge-padded by the
   patch radius ``r`` (so source pixel (y, x) has its patch at ``Sp[y:y + p, x:x + p]``, which is the
   clamped patch of the unpadded image); the translation-only kernels take the target padded by ``r``
-  too (raveled for :func:`iterate` / :func:`init_field`), the generalized ones the
-  :func:`bilinear_table` of the unpadded target (bilinear taps clamp their coordinates); the
-  PatchMatch kernels also take the unpadded target size (ht, wt);
-* a field is four (H, W) arrays: target patch centre x, y (pixels, float32), angle (rad) and scale,
-  plus the SSD (sum over the patch and the channels) in a fifth;
+  too (raveled for :func:`iterate` / :func:`init_field`), the generalized ones the target edge-padded by one
+  pixel at the right and bottom (one channel: its :func:`bilinear_table`), raveled (bilinear taps clamp their
+  coordinates); the PatchMatch kernels also take the unpadded target size (ht, wt);
+* a field is four (H, W) arrays: target patch centre x, y (pixels, float32), angle and scale as int32
+  indices into the grids ``agrid`` (rad) and ``sgrid`` (so their sines, cosines and scales are tabled), plus
+  the SSD (sum over the patch and the channels, float64) in a fifth;
 * a target offset ``(dx, dy)`` of the source patch maps to ``s * R(a) (dx, dy)`` around the centre,
   ``R(a) = [[cos a, -sin a], [sin a, cos a]]`` in pixel coordinates (x right, y down);
 * randomness is a counter-based hash (splitmix64) of (seed, iteration, pixel), so a run gives the same
@@ -76,15 +77,15 @@ def _cost_int(sp, tp, sy, sx, ty, tx, p, best):
 
 
 @njit(cache=True)
-def _gather(sp, sy, sx, p, sb):
-    """Copy the (padded) source patch at (sy, sx) into the flat buffer ``sb`` (p * p * nc)."""
-    nc = sp.shape[2]
-    k = 0
+def _gather(spf, srow, sy, sx, p, nc, sb):
+    """Copy the (padded) source patch at (sy, sx) into the flat buffer ``sb`` (p * p * nc); ``spf`` is the
+    raveled padded source, ``srow`` its row stride."""
+    n = p * nc
     for j in range(p):
-        for i in range(p):
-            for c in range(nc):
-                sb[k] = sp[sy + j, sx + i, c]
-                k += 1
+        o = (sy + j) * srow + sx * nc
+        q = j * n
+        for k in range(n):
+            sb[q + k] = spf[o + k]
 
 
 @njit(cache=True, fastmath=_FM)
@@ -96,7 +97,7 @@ def _cost_flat(sb, tf, row, base, p, nc, best):
     for j in range(p):
         o = base + j * row
         q = j * n
-        part = 0.0
+        part = np.float32(0.0)
         for k in range(n):
             d = sb[q + k] - tf[o + k]
             part += d * d
@@ -106,45 +107,61 @@ def _cost_flat(sb, tf, row, base, p, nc, best):
     return acc
 
 
+@njit(cache=True, fastmath=_FM)
+def _cost_bil(sb, tb, ht, wt, nc, cy, cx, ca, sa, r, best):
+    """SSD of the gathered source patch ``sb`` and the target patch centred at (cx, cy), sampled bilinearly at
+    ``(cx, cy) + [[ca, -sa], [sa, ca]] (dx, dy)`` (ca = s cos a, sa = s sin a), coordinates clamped to the
+    image; ``tb`` is :func:`bilinear_table` of the target for nc == 1, else the target edge-padded by one pixel
+    at the right and the bottom, (ht + 1, wt + 1, nc) raveled; stops once >= best. The coordinate clamps are
+    no-ops when the whole patch lies inside the image; for nc == 4 (RGB plus a zero channel) a pixel is one SIMD
+    vector."""
+    xmax = wt - 1.0
+    ymax = ht - 1.0
+    ext = (abs(ca) + abs(sa)) * r
+    if cx - ext >= 0.0 and cx + ext <= xmax and cy - ext >= 0.0 and cy + ext <= ymax:
+        xmax = 1e30
+        ymax = 1e30
+    if nc == 4:
+        return _bil(sb, tb, wt + 1, 4, cy, cx, ca, sa, r, best, xmax, ymax)
+    if nc == 1:
+        return _bil1(sb, tb, wt, cy, cx, ca, sa, r, best, xmax, ymax)
+    return _bil(sb, tb, wt + 1, nc, cy, cx, ca, sa, r, best, xmax, ymax)
+
+
 @njit(cache=True)
 def bilinear_table(t):
-    """Per target pixel and channel the coefficients (a, b, c, d) of the bilinear patch to its right/lower
-    neighbours (clamped at the border): ``v(fx, fy) = a + b fx + c fy + d fx fy``; flat, (ht * wt * nc * 4)."""
-    ht, wt, nc = t.shape
-    out = np.empty(ht * wt * nc * 4, np.float32)
+    """For one channel (t (ht, wt, 1)): per pixel the coefficients (a, b, c, d) of the bilinear patch to its
+    right/lower neighbours (clamped at the border), ``v(fx, fy) = a + b fx + c fy + d fx fy``; (ht * wt * 4)."""
+    ht, wt = t.shape[0], t.shape[1]
+    out = np.empty(ht * wt * 4, np.float32)
     k = 0
     for y in range(ht):
         y1 = min(y + 1, ht - 1)
         for x in range(wt):
             x1 = min(x + 1, wt - 1)
-            for c in range(nc):
-                t00 = t[y, x, c]
-                t01 = t[y, x1, c]
-                t10 = t[y1, x, c]
-                t11 = t[y1, x1, c]
-                out[k] = t00
-                out[k + 1] = t01 - t00
-                out[k + 2] = t10 - t00
-                out[k + 3] = t11 - t10 - t01 + t00
-                k += 4
+            t00 = t[y, x, 0]
+            t01 = t[y, x1, 0]
+            t10 = t[y1, x, 0]
+            t11 = t[y1, x1, 0]
+            out[k] = t00
+            out[k + 1] = t01 - t00
+            out[k + 2] = t10 - t00
+            out[k + 3] = t11 - t10 - t01 + t00
+            k += 4
     return out
 
 
-@njit(cache=True, fastmath=_FM)
-def _cost_bil(sb, tb, ht, wt, nc, cy, cx, ca, sa, r, best):
-    """SSD of the gathered source patch ``sb`` and the target patch centred at (cx, cy), sampled bilinearly at
-    ``(cx, cy) + [[ca, -sa], [sa, ca]] (dx, dy)`` (ca = s cos a, sa = s sin a), coordinates clamped to the
-    image, through the table ``tb`` of :func:`bilinear_table`; stops once >= best."""
+@njit(cache=True, fastmath=_FM, inline="always")
+def _bil1(sb, tb, wt, cy, cx, ca, sa, r, best, xmax, ymax):
+    """:func:`_cost_bil` for one channel through the :func:`bilinear_table` ``tb`` (fewer operations per tap)."""
     p = 2 * r + 1
-    n4 = nc * 4
-    xmax = wt - 1.0
-    ymax = ht - 1.0
     acc = 0.0
     k = 0
     for j in range(p):
         dy = j - r
         x = cx - sa * dy - ca * r
         y = cy + ca * dy - sa * r
+        part = np.float32(0.0)
         for i in range(p):
             xc = min(max(x, 0.0), xmax)
             yc = min(max(y, 0.0), ymax)
@@ -152,39 +169,143 @@ def _cost_bil(sb, tb, ht, wt, nc, cy, cx, ca, sa, r, best):
             y0 = int(yc)
             fx = np.float32(xc - x0)
             fy = np.float32(yc - y0)
-            o = (y0 * wt + x0) * n4
-            part = np.float32(0.0)
-            for c in range(nc):
-                q = o + 4 * c
-                v = tb[q] + fx * tb[q + 1] + fy * (tb[q + 2] + fx * tb[q + 3])
-                d = sb[k] - v
-                part += d * d
-                k += 1
-            acc += part
+            o = (y0 * wt + x0) * 4
+            v = tb[o] + fx * tb[o + 1] + fy * (tb[o + 2] + fx * tb[o + 3])
+            d = sb[k] - v
+            part += d * d
+            k += 1
             x += ca
             y += sa
+        acc += part
+        if acc >= best:
+            return acc
+    return acc
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _bil(sb, tb, wp, nc, cy, cx, ca, sa, r, best, xmax, ymax):
+    """:func:`_cost_bil` once the channel count ``nc`` is a constant (padded row width ``wp``)."""
+    p = 2 * r + 1
+    row = wp * nc
+    acc = 0.0
+    k = 0
+    for j in range(p):
+        dy = j - r
+        x = cx - sa * dy - ca * r
+        y = cy + ca * dy - sa * r
+        part = np.float32(0.0)
+        for i in range(p):
+            xc = min(max(x, 0.0), xmax)
+            yc = min(max(y, 0.0), ymax)
+            x0 = int(xc)
+            y0 = int(yc)
+            fx = np.float32(xc - x0)
+            fy = np.float32(yc - y0)
+            o = y0 * row + x0 * nc
+            for c in range(nc):
+                t00 = tb[o + c]
+                t01 = tb[o + nc + c]
+                t10 = tb[o + row + c]
+                t11 = tb[o + row + nc + c]
+                top = t00 + fx * (t01 - t00)
+                v = top + fy * (t10 + fx * (t11 - t10) - top)
+                d = sb[k + c] - v
+                part += d * d
+            k += nc
+            x += ca
+            y += sa
+        acc += part
         if acc >= best:
             return acc
     return acc
 
 
 @njit(cache=True, parallel=True)
-def init_field(sp, tf, ht, wt, r, general, seed, amin, amax, lsmin, lsmax, fx, fy, fa, fs, fd):
-    """Random initial field: centres uniform over the target (integers when not ``general``), angles
-    uniform in [amin, amax], scales log-uniform in [exp(lsmin), exp(lsmax)]; fills the SSD.
+def box_means(t, sizes):
+    """Per odd size q of ``sizes`` the mean of the q x q window around every pixel of ``t`` (H, W, C), with
+    coordinates clamped to the image (an edge-padded window): (K, H, W, C) raveled, float32."""
+    h, w, nc = t.shape
+    out = np.empty((sizes.shape[0], h, w, nc), np.float32)
+    rows = np.empty((h, w, nc), np.float64)
+    for k in range(sizes.shape[0]):
+        q = sizes[k]
+        r = q // 2
+        for y in prange(h):
+            for c in range(nc):  # running sums along the row
+                acc = 0.0
+                for i in range(-r, r + 1):
+                    acc += t[y, min(max(i, 0), w - 1), c]
+                for x in range(w):
+                    rows[y, x, c] = acc
+                    acc += t[y, min(x + r + 1, w - 1), c] - t[y, max(x - r, 0), c]
+        for x in prange(w):
+            for c in range(nc):  # and down the column
+                acc = 0.0
+                for j in range(-r, r + 1):
+                    acc += rows[min(max(j, 0), h - 1), x, c]
+                for y in range(h):
+                    out[k, y, x, c] = acc / (q * q)
+                    acc += rows[min(y + r + 1, h - 1), x, c] - rows[max(y - r, 0), x, c]
+    return out.ravel()
 
-    ``tf`` is the flat target: :func:`bilinear_table` of it when ``general``, else the target padded by r,
+
+@njit(cache=True)
+def _patch_mean(sb, nc, mu):
+    """Per-channel mean of the gathered patch ``sb`` into ``mu``."""
+    n = sb.shape[0] // nc
+    for c in range(nc):
+        acc = 0.0
+        for k in range(c, sb.shape[0], nc):
+            acc += sb[k]
+        mu[c] = acc / n
+
+
+@njit(cache=True)
+def _mean_bound(mu, tm, o, nc, n):
+    """``n * |mu - tm[o:o + nc]|^2``: a lower bound of the SSD of two n-sample patches with these means."""
+    acc = 0.0
+    for c in range(nc):
+        d = mu[c] - tm[o + c]
+        acc += d * d
+    return n * acc
+
+
+@njit(cache=True)
+def _grid_index(u, n):
+    """A uniform u in [0, 1) to an integer in [0, n)."""
+    return min(int(u * n), n - 1)
+
+
+@njit(cache=True, parallel=True)
+def init_field(sp, tf, ht, wt, r, general, seed, agrid, sgrid, fx, fy, ka, ks, fd, given=False):
+    """Random initial field: centres uniform over the target (integers when not ``general``), angle and scale
+    indices uniform over the grids ``agrid`` (angles [rad]) and ``sgrid`` (scales, log-spaced); fills the SSD.
+
+    ``tf`` is the flat target: as :func:`_cost_bil` takes it when ``general``, else the target padded by r,
     (ht + 2r, wt + 2r, nc), raveled.
     """
     h, w = fx.shape
     p = 2 * r + 1
     nc = sp.shape[2]
+    spf = sp.reshape(sp.size)
+    srow = sp.shape[1] * nc
     prow = (wt + 2 * r) * nc
+    na = agrid.shape[0]
+    ns = sgrid.shape[0]
     for yy in prange(h):
         y = np.int64(yy)
         sb = np.empty(p * p * nc, np.float32)
         for x in range(w):
-            _gather(sp, y, x, p, sb)
+            _gather(spf, srow, y, x, p, nc, sb)
+            if given:
+                if general:
+                    s = sgrid[ks[y, x]]
+                    a = agrid[ka[y, x]]
+                    fd[y, x] = _cost_bil(sb, tf, ht, wt, nc, fy[y, x], fx[y, x], s * math.cos(a), s * math.sin(a), r,
+                                         np.inf)
+                else:
+                    fd[y, x] = _cost_flat(sb, tf, prow, int(fy[y, x]) * prow + int(fx[y, x]) * nc, p, nc, np.inf)
+                continue
             st = _seed(seed, y * w + x)
             st, u = _uniform(st)
             st, v = _uniform(st)
@@ -193,42 +314,55 @@ def init_field(sp, tf, ht, wt, r, general, seed, amin, amax, lsmin, lsmax, fx, f
                 st, us = _uniform(st)
                 cx = u * (wt - 1)
                 cy = v * (ht - 1)
-                a = amin + ua * (amax - amin)
-                s = math.exp(lsmin + us * (lsmax - lsmin))
-                d = _cost_bil(sb, tf, ht, wt, nc, cy, cx, s * math.cos(a), s * math.sin(a), r, np.inf)
+                ia = _grid_index(ua, na)
+                js = _grid_index(us, ns)
+                s = sgrid[js]
+                d = _cost_bil(sb, tf, ht, wt, nc, cy, cx, s * math.cos(agrid[ia]), s * math.sin(agrid[ia]), r,
+                              np.inf)
             else:
-                ix = min(int(u * wt), wt - 1)
-                iy = min(int(v * ht), ht - 1)
+                ix = _grid_index(u, wt)
+                iy = _grid_index(v, ht)
                 cx = float(ix)
                 cy = float(iy)
-                a = 0.0
-                s = 1.0
+                ia = 0
+                js = 0
                 d = _cost_flat(sb, tf, prow, iy * prow + ix * nc, p, nc, np.inf)
             fx[y, x] = cx
             fy[y, x] = cy
-            fa[y, x] = a
-            fs[y, x] = s
+            ka[y, x] = ia
+            ks[y, x] = js
             fd[y, x] = d
 
 
 @njit(cache=True, parallel=True)
-def iterate(sp, tf, ht, wt, r, general, seed, it, starts, ends, amin, amax, lsmin, lsmax, fx, fy, fa, fs, fd):
+def iterate(sp, tf, ht, wt, r, general, seed, it, starts, ends, agrid, sgrid, rmax, nglobal, tmeans, sidx, kappa,
+            fx, fy, ka, ks, fd):
     """One PatchMatch iteration in place: propagation then random search, pixel by pixel in scan order.
 
     Rows are split into bands [starts[b], ends[b]) run in parallel; propagation reads only neighbours in
     the pixel's own band (so no thread reads what another writes). Even iterations scan forwards and
     propagate from the left and upper neighbours, odd ones backwards from the right and lower ones.
-    ``tf`` as in :func:`init_field`.
+    The random search tries ``nglobal`` centres uniform over the whole target, then centres around the
+    current best in a window halving from ``rmax`` down to one pixel, angle and scale indices in a window
+    halving from the whole grids along with it. ``tf`` as in :func:`init_field`.
+
+    A random candidate is skipped without computing its SSD when ``p^2 |mean(source patch) - mean(target
+    patch)|^2``, a lower bound of the SSD, is at least ``kappa`` times the current best; the target means are
+    ``tmeans`` (K, ht, wt, nc) raveled, box means of the size ``sidx[scale index]`` picks (exact for a
+    translation, an estimate for a rotated or scaled patch).
     """
     h, w = fx.shape
     p = 2 * r + 1
     nc = sp.shape[2]
+    spf = sp.reshape(sp.size)
+    srow = sp.shape[1] * nc
     prow = (wt + 2 * r) * nc
     forward = it % 2 == 0
     step = 1 if forward else -1
-    wmax = float(max(ht, wt))
-    arange = amax - amin
-    lsrange = lsmax - lsmin
+    na = agrid.shape[0]
+    ns = sgrid.shape[0]
+    cosg = np.cos(agrid)
+    sing = np.sin(agrid)
     xmax = wt - 1.0
     ymax = ht - 1.0
     nb = starts.shape[0]
@@ -236,15 +370,18 @@ def iterate(sp, tf, ht, wt, r, general, seed, it, starts, ends, amin, amax, lsmi
         y_lo = starts[b]
         y_hi = ends[b]
         sb = np.empty(p * p * nc, np.float32)
+        mu = np.empty(nc, np.float64)
+        npix = float(p * p)
         for k in range(y_hi - y_lo):
             y = y_lo + k if forward else y_hi - 1 - k
             for m in range(w):
                 x = m if forward else w - 1 - m
-                _gather(sp, y, x, p, sb)
+                _gather(spf, srow, y, x, p, nc, sb)
+                _patch_mean(sb, nc, mu)
                 bx = fx[y, x]
                 by = fy[y, x]
-                ba = fa[y, x]
-                bs = fs[y, x]
+                ba = ka[y, x]
+                bs = ks[y, x]
                 best = fd[y, x]
                 # propagation: the neighbour n = (x - step, y) or (x, y - step) predicts the centre
                 # c_n + s_n R(a_n) (x - n) for this pixel, with its own angle and scale
@@ -261,32 +398,70 @@ def iterate(sp, tf, ht, wt, r, general, seed, it, starts, ends, amin, amax, lsmi
                             continue
                     ddx = float(x - nx)
                     ddy = float(y - ny)
-                    na = fa[ny, nx]
-                    ns = fs[ny, nx]
                     if general:
-                        ca = ns * math.cos(na)
-                        sa = ns * math.sin(na)
+                        na_ = ka[ny, nx]
+                        ns_ = ks[ny, nx]
+                        ca = sgrid[ns_] * cosg[na_]
+                        sa = sgrid[ns_] * sing[na_]
                         cx = min(max(fx[ny, nx] + ca * ddx - sa * ddy, 0.0), xmax)
                         cy = min(max(fy[ny, nx] + sa * ddx + ca * ddy, 0.0), ymax)
-                        if cx == bx and cy == by and na == ba and ns == bs:
+                        if cx == bx and cy == by and na_ == ba and ns_ == bs:
                             continue
                         d = _cost_bil(sb, tf, ht, wt, nc, cy, cx, ca, sa, r, best)
+                        if d < best:
+                            best = d
+                            bx = cx
+                            by = cy
+                            ba = na_
+                            bs = ns_
                     else:
                         cx = min(max(fx[ny, nx] + ddx, 0.0), xmax)
                         cy = min(max(fy[ny, nx] + ddy, 0.0), ymax)
                         if cx == bx and cy == by:
                             continue
                         d = _cost_flat(sb, tf, prow, int(cy) * prow + int(cx) * nc, p, nc, best)
-                    if d < best:
-                        best = d
-                        bx = cx
-                        by = cy
-                        ba = na
-                        bs = ns
-                # random search around the current best, window halving from the whole target
+                        if d < best:
+                            best = d
+                            bx = cx
+                            by = cy
                 st = _seed(seed, (it + 1) * h * w + y * w + x)
-                radius = wmax
-                ratio = 1.0
+                # global samples: uniform over the whole target and the whole grids
+                for g in range(nglobal):
+                    st, u = _uniform(st)
+                    st, v = _uniform(st)
+                    if general:
+                        st, ua = _uniform(st)
+                        st, us = _uniform(st)
+                        cx = u * xmax
+                        cy = v * ymax
+                        ia = _grid_index(ua, na)
+                        js = _grid_index(us, ns)
+                        o = ((sidx[js] * ht + int(cy + 0.5)) * wt + int(cx + 0.5)) * nc
+                        if _mean_bound(mu, tmeans, o, nc, npix) >= kappa * best:
+                            continue
+                        s = sgrid[js]
+                        d = _cost_bil(sb, tf, ht, wt, nc, cy, cx, s * cosg[ia], s * sing[ia], r, best)
+                        if d < best:
+                            best = d
+                            bx = cx
+                            by = cy
+                            ba = ia
+                            bs = js
+                    else:
+                        ix = _grid_index(u, wt)
+                        iy = _grid_index(v, ht)
+                        if _mean_bound(mu, tmeans, (iy * wt + ix) * nc, nc, npix) >= kappa * best:
+                            continue
+                        d = _cost_flat(sb, tf, prow, iy * prow + ix * nc, p, nc, best)
+                        if d < best:
+                            best = d
+                            bx = float(ix)
+                            by = float(iy)
+                # random search around the current best, window halving from rmax (position) and the
+                # whole grids (angle, scale) down to one pixel
+                radius = rmax
+                aw = float(na - 1)
+                sw = float(ns - 1)
                 while radius >= 1.0:
                     st, u = _uniform(st)
                     st, v = _uniform(st)
@@ -295,32 +470,35 @@ def iterate(sp, tf, ht, wt, r, general, seed, it, starts, ends, amin, amax, lsmi
                         st, us = _uniform(st)
                         cx = min(max(bx + radius * (2.0 * u - 1.0), 0.0), xmax)
                         cy = min(max(by + radius * (2.0 * v - 1.0), 0.0), ymax)
-                        a = min(max(ba + arange * ratio * (2.0 * ua - 1.0), amin), amax)
-                        s = bs
-                        if lsrange > 0.0:
-                            s = math.exp(min(max(math.log(bs) + lsrange * ratio * (2.0 * us - 1.0), lsmin), lsmax))
-                        d = _cost_bil(sb, tf, ht, wt, nc, cy, cx, s * math.cos(a), s * math.sin(a), r, best)
-                        if d < best:
-                            best = d
-                            bx = cx
-                            by = cy
-                            ba = a
-                            bs = s
+                        ia = min(max(int(math.floor(ba + aw * (2.0 * ua - 1.0) + 0.5)), 0), na - 1)
+                        js = min(max(int(math.floor(bs + sw * (2.0 * us - 1.0) + 0.5)), 0), ns - 1)
+                        o = ((sidx[js] * ht + int(cy + 0.5)) * wt + int(cx + 0.5)) * nc
+                        if _mean_bound(mu, tmeans, o, nc, npix) < kappa * best:
+                            s = sgrid[js]
+                            d = _cost_bil(sb, tf, ht, wt, nc, cy, cx, s * cosg[ia], s * sing[ia], r, best)
+                            if d < best:
+                                best = d
+                                bx = cx
+                                by = cy
+                                ba = ia
+                                bs = js
                     else:
                         cx = min(max(math.floor(bx + radius * (2.0 * u - 1.0) + 0.5), 0.0), xmax)
                         cy = min(max(math.floor(by + radius * (2.0 * v - 1.0) + 0.5), 0.0), ymax)
-                        if cx != bx or cy != by:
+                        o = (int(cy) * wt + int(cx)) * nc
+                        if (cx != bx or cy != by) and _mean_bound(mu, tmeans, o, nc, npix) < kappa * best:
                             d = _cost_flat(sb, tf, prow, int(cy) * prow + int(cx) * nc, p, nc, best)
                             if d < best:
                                 best = d
                                 bx = cx
                                 by = cy
                     radius *= 0.5
-                    ratio *= 0.5
+                    aw *= 0.5
+                    sw *= 0.5
                 fx[y, x] = bx
                 fy[y, x] = by
-                fa[y, x] = ba
-                fs[y, x] = bs
+                ka[y, x] = ba
+                ks[y, x] = bs
                 fd[y, x] = best
 
 

@@ -17,7 +17,8 @@ photo is a linear pinhole render (:meth:`SceneRenderer.render_pinhole`, ``photo_
 keyframe positions plus ``photo_offset`` (default 0.35 m up, so on no RGB-D frame's or expansion view's
 viewpoint) towards, with ``photo_target="overexposed"`` (default), the centroid of the cloud's over-exposed
 points (:func:`probeless.hdr.transfer.overexposed`; as a photographer aims the HDR photo at the bright
-parts), or with ``"look-at"`` (or when nothing is over-exposed) the mean of the keyframes' look-at points;
+parts), or with ``"look-at"`` (or when nothing is over-exposed) the mean of the keyframes' look-at points,
+or a given world point (3 numbers [m], e.g. the coarse model's over-exposed texels' centroid);
 times the unknown ``photo_exposure``. The ceiling lamps are in no RGB-D frame of the shipped scenes, so
 the over-exposed points are the windows and the lamp-lit surfaces. Everything is deterministic
 (no noise, no random draw; ``seed`` is kept for the interface and only recorded).
@@ -72,15 +73,21 @@ def voxel_merge(points: np.ndarray, values: np.ndarray, voxel: float) -> tuple[n
 def synthetic_case(scene_path: str | Path, *, frames: int = 8, scale: float = 0.25, voxel: float = 0.02,
                    exposure: float = 1.0, photo_exposure: float = 0.37, photo_size=(320, 240),
                    photo_fov_deg: float = 100.0, photo_offset=(0.0, 0.0, 0.35),
-                   photo_target: str = "overexposed", seed: int = 0) -> SyntheticCase:
+                   photo_target="overexposed", seed: int = 0) -> SyntheticCase:
     """The :class:`SyntheticCase` of a scene YAML (module docstring: where the truth comes from)."""
     from probeless.hdr.transfer import overexposed
     from probeless.hdr.views import camera_looking_at
     from probeless.scene.parse import load_scene
     from probeless.scene.rig import Rig
 
-    if photo_target not in ("overexposed", "look-at"):
-        raise HdrError(f"synthetic_case: photo_target must be 'overexposed' or 'look-at', got {photo_target!r}")
+    aim = None
+    if not isinstance(photo_target, str):
+        aim = np.asarray(photo_target, np.float64)
+        if aim.shape != (3,) or not np.isfinite(aim).all():
+            raise HdrError(f"synthetic_case: photo_target point must be 3 finite numbers, got {photo_target!r}")
+    elif photo_target not in ("overexposed", "look-at"):
+        raise HdrError(f"synthetic_case: photo_target must be 'overexposed', 'look-at' or a point, "
+                       f"got {photo_target!r}")
     if frames < 1 or not 0 < scale <= 1 or voxel <= 0 or exposure <= 0 or photo_exposure <= 0:
         raise HdrError("synthetic_case: frames >= 1, 0 < scale <= 1, voxel, exposure, photo_exposure > 0")
     scene = load_scene(scene_path)
@@ -113,7 +120,9 @@ def synthetic_case(scene_path: str | Path, *, frames: int = 8, scale: float = 0.
         ldr = np.clip(np.float32(exposure) * truth, 0.0, 1.0).astype(np.float32)
         target = np.mean([k.look_at for k in scene.keyframes], axis=0)
         over = overexposed(ldr)
-        if photo_target == "overexposed" and over.any():
+        if aim is not None:
+            target = aim
+        elif photo_target == "overexposed" and over.any():
             target = points[over].mean(axis=0)
         photo_K, photo_pose = camera_looking_at(photo_pos, target, photo_fov_deg, photo_size)
         photo, _ = rig.renderer.render_pinhole(photo_pose, photo_K, int(photo_size[0]), int(photo_size[1]), light)

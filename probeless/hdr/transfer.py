@@ -180,3 +180,35 @@ def apply_transfer(ldr_points: np.ndarray, hdr_samples: np.ndarray, counts: np.n
     else:
         out[take] = ldr[take] * (luminance(sample) / luminance(ldr[take]))[:, None]
     return out, ~over | take
+
+
+def reject_cluster_outliers(hdr_points: np.ndarray, valid: np.ndarray, clusters, factor: float = 2.0,
+                            mads: float = 3.0) -> tuple[np.ndarray, int]:
+    """``(valid without the outliers, number rejected)``: robust agreement inside each clipped cluster.
+
+    A connected cluster of over-exposed points (``clusters``: :class:`~.views.SaturatedCluster` list) is
+    most often one surface or one emitter, yet PatchMatch matches its flat interior to any clipped patch of
+    the photo with SSD 0 (a wall lit by a lamp may fetch the lamp). Per cluster, among its valid points,
+    those whose log luminance is further than ``max(log factor, mads * 1.4826 * MAD)`` from the cluster's
+    median are outliers: they lose their value, and the Poisson fill gives them one from their neighbours.
+    Clusters with fewer than 3 valid points are left alone.
+    """
+    h = _points(hdr_points, "hdr_points")
+    v = np.asarray(valid, bool).copy()
+    if v.shape != (h.shape[0],):
+        raise HdrError(f"valid: expected shape ({h.shape[0]},), got {v.shape}")
+    if not (np.isfinite(factor) and factor > 1 and np.isfinite(mads) and mads > 0):
+        raise HdrError(f"factor must be > 1 and mads > 0, got {factor!r}, {mads!r}")
+    rejected = 0
+    for cl in clusters:
+        idx = cl.indices[v[cl.indices]]
+        if len(idx) < 3:
+            continue
+        y = np.log(np.maximum(luminance(h[idx]).astype(np.float64), 1e-12))
+        med = np.median(y)
+        mad = np.median(np.abs(y - med))
+        out = np.abs(y - med) > max(np.log(factor), mads * 1.4826 * mad)
+        v[idx[out]] = False
+        rejected += int(out.sum())
+    return v, rejected
+

@@ -49,12 +49,13 @@ def read_panorama(path: str, linear: bool = False) -> np.ndarray:
     if not os.path.isfile(path):
         raise DatasetError(f"{path}: panorama file not found")
     hdr = suffix in HDR_SUFFIXES
-    img = cv2.imread(path, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR if hdr else cv2.IMREAD_COLOR)
-    if img is None:
-        hint = (" (this OpenCV cannot read OpenEXR: set OPENCV_IO_ENABLE_OPENEXR=1 before cv2 is imported "
-                "with a build that has it, or convert the file to Radiance .hdr)") if suffix == ".exr" else ""
-        raise DatasetError(f"{path}: cannot decode the image{hint}")
-    rgb = np.ascontiguousarray(img[..., ::-1])
+    if suffix == ".exr":
+        rgb = read_exr(path)
+    else:
+        img = cv2.imread(path, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR if hdr else cv2.IMREAD_COLOR)
+        if img is None:
+            raise DatasetError(f"{path}: cannot decode the image")
+        rgb = np.ascontiguousarray(img[..., ::-1])
     if hdr:
         rgb = rgb.astype(np.float32, copy=False)
         if not np.isfinite(rgb).all():
@@ -63,6 +64,51 @@ def read_panorama(path: str, linear: bool = False) -> np.ndarray:
     if rgb.dtype != np.uint8:
         raise DatasetError(f"{path}: expected 8-bit pixels, got {rgb.dtype}")
     return from_srgb8(rgb) if linear else rgb
+
+
+def read_exr(path: str) -> np.ndarray:
+    """(H, W, 3) float32 RGB of an OpenEXR file (the ``OpenEXR`` package: this OpenCV build has no EXR codec).
+
+    Channels ``RGB``/``RGBA`` (grouped by the reader), or ``R``, ``G``, ``B``, or a grey ``Y``; half floats
+    are widened. DatasetError names the file for an unreadable file or other channels."""
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(str(path)) as f:
+            channels = {name: np.asarray(c.pixels) for name, c in f.channels().items()}
+    except Exception as exc:  # OpenEXR raises plain exceptions for corrupt or non-EXR files
+        raise DatasetError(f"{path}: cannot decode the OpenEXR image ({exc})") from None
+    for name in ("RGB", "RGBA"):
+        if name in channels and channels[name].ndim == 3:
+            return np.ascontiguousarray(channels[name][..., :3], np.float32)
+    if all(c in channels for c in "RGB"):
+        return np.ascontiguousarray(np.stack([channels[c] for c in "RGB"], axis=-1), np.float32)
+    if "Y" in channels:
+        return np.ascontiguousarray(np.repeat(channels["Y"][..., None], 3, axis=-1), np.float32)
+    raise DatasetError(f"{path}: OpenEXR channels {sorted(channels)}: expected RGB(A), R G B or Y")
+
+
+def write_hdr_image(path, rgb: np.ndarray) -> None:
+    """Write (H, W, 3) linear float RGB as Radiance ``.hdr``/``.pic`` (OpenCV, RGBE) or ``.exr`` (OpenEXR,
+    float32, ZIP). DatasetError names the file when it cannot be written."""
+    img = np.ascontiguousarray(np.asarray(rgb, np.float32))
+    if img.ndim != 3 or img.shape[2] != 3 or not np.isfinite(img).all():
+        raise DatasetError(f"{path}: expected finite (H, W, 3) RGB to write, got {img.dtype} {img.shape}")
+    suffix = os.path.splitext(str(path))[1].lower()
+    if suffix == ".exr":
+        import OpenEXR
+
+        try:
+            with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                              {"RGB": img}) as f:
+                f.write(str(path))
+            return
+        except Exception as exc:
+            raise DatasetError(f"{path}: cannot write the OpenEXR image ({exc})") from None
+    if suffix not in (".hdr", ".pic"):
+        raise DatasetError(f"{path}: unknown HDR image type {suffix!r}, expected .hdr, .pic or .exr")
+    if not cv2.imwrite(str(path), np.ascontiguousarray(img[..., ::-1])):
+        raise DatasetError(f"{path}: cannot write the Radiance image")
 
 
 def _decode(path: str, fps: float, loop: bool) -> Iterator[tuple[int, tuple[float, np.ndarray]]]:

@@ -1,8 +1,11 @@
 """Synthetic HDR-expansion ground truth (probeless.hdr.synthetic) and ``probeless eval hdr-expand``.
 
-On light_switch with the test's small settings (SMALL: 27480 points, 1796 over-exposed) the eval gives an
-over-exposed cloud RMS of 0.936 for ``ldr`` and 0.646 for ``pmatch-rgb`` (cloud units), diffuse-sphere RMS
-0.182 vs 0.112 (photo aimed at the over-exposed points, the default).
+The eval lights a diffuse and a GGX sphere by the cubemap of each cloud through the IBL renderer; here the
+pieces are checked against independent references: a constant environment (analytic radiance L x albedo),
+linearity of the rendering in the cloud's
+colours (k x truth has RMS |k - 1| x the truth's RMS), clipping (LDR lights the GGX sphere less, pixel by
+pixel). On light_switch with the test's small settings (SMALL) ``pmatch-rgb`` beats ``ldr`` on the
+over-exposed cloud RMS and on both renderings.
 """
 
 from __future__ import annotations
@@ -19,7 +22,8 @@ from probeless.hdr.transfer import overexposed
 
 SCENE = REPO / "launch" / "scenes" / "light_switch.yaml"
 SMALL = ["--frames", "4", "--scale", "0.2", "--voxel", "0.03", "--views", "2", "--size", "96", "--face", "32",
-         "--sphere", "48"]
+         "--image", "64"]
+KEYS = ("cloud_rms", "cloud_rms_overexposed", "diffuse_rms", "diffuse_ssim", "ggx_rms", "ggx_ssim")
 
 
 @pytest.fixture(scope="module")
@@ -28,6 +32,32 @@ def case():
 
     return synthetic_case(SCENE, frames=4, scale=0.2, voxel=0.03, exposure=1.0)
 
+
+@pytest.fixture(scope="module")
+def ctx():
+    from probeless.gl.context import create_context
+
+    c = create_context()
+    yield c
+    c.release()
+
+
+def make_objects(ctx, centre=(0.0, 0.0, 1.0), radius=0.12, size=64, roughness=0.3,
+                 towards=((1.0, 3.0, 1.4), (3.0, -1.0, 1.6))):
+    from probeless.eval.hdr_expand import viewpoints
+    from probeless.ibl.probes import ProbeRenderer
+
+    cams = viewpoints(centre, radius, towards, size)
+    return ProbeRenderer(ctx, centre, radius, roughness, cams, size), cams
+
+
+def cube(size: int, fn) -> np.ndarray:
+    from probeless.geom.cube import cube_directions
+
+    return fn(cube_directions(size)).astype(np.float32)
+
+
+# --- synthetic case ----------------------------------------------------------------------------------
 
 @pytest.mark.gl
 def test_synthetic_ldr_is_the_clipped_exposed_truth_with_overexposed_points(case):
@@ -49,6 +79,145 @@ def test_synthetic_case_is_deterministic(case):
     np.testing.assert_array_equal(again.photo_hdr, case.photo_hdr)
 
 
+def test_synthetic_case_rejects_an_unknown_photo_target():
+    from probeless.errors import HdrError
+    from probeless.hdr.synthetic import synthetic_case
+
+    with pytest.raises(HdrError, match="photo_target"):
+        synthetic_case(SCENE, photo_target="ceiling")
+
+
+# --- the two objects ----------------------------------------------------------------
+
+@pytest.mark.gl
+def test_spheres_under_a_constant_environment_have_its_radiance(ctx):
+    """Lambertian albedo 1 under constant radiance L: outgoing radiance L x albedo = L (analytic); the GGX
+    sphere (colour 1) reflects L too."""
+    objects, cams = make_objects(ctx)
+    try:
+        L = np.array([0.7, 1.3, 2.5])
+        out = objects.render(np.full((6, 32, 32, 3), L, np.float32))
+    finally:
+        objects.release()
+    for kind in ("diffuse", "ggx"):
+        assert len(out[kind]) == 2
+        for img, mask in out[kind]:
+            assert mask.sum() > 0.3 * mask.size and not mask[0].any() and not mask[:, 0].any()
+            np.testing.assert_allclose(img[mask], np.broadcast_to(L, img[mask].shape), rtol=2e-3)
+            assert np.all(img[~mask] == 0)
+
+
+def test_viewpoints_look_at_the_object_from_4_radii_towards_each_target():
+    from probeless.eval.hdr_expand import VIEW_FILL, viewpoints
+
+    centre, radius = np.array([2.0, 2.0, 0.9]), 0.12
+    towards = [(1.0, 3.2, 1.4), (3.5, 3.2, 1.4)]
+    cams = viewpoints(centre, radius, towards, 128)
+    assert len(cams) == 2
+    for (K, pose), t in zip(cams, towards):
+        d = np.asarray(t) - centre
+        np.testing.assert_allclose(pose[:3, 3], centre + 0.48 * d / np.linalg.norm(d), atol=1e-9)
+        np.testing.assert_allclose(pose[:3, 2], -d / np.linalg.norm(d), atol=1e-9)  # optical axis at the centre
+        # the silhouette (tangent cone, half-angle asin(r / dist)) spans VIEW_FILL of the width
+        span = 2 * K[0, 0] * np.tan(np.arcsin(radius / 0.48))
+        assert span == pytest.approx(VIEW_FILL * 128, rel=1e-6)
+
+
+@pytest.fixture(scope="module")
+def lit(case, ctx):
+    """Renderings (face 32, 64 px) of the spheres at the case's object lit by the true cloud, 1.1 x the true
+    cloud and the LDR colours."""
+    from probeless.eval.hdr_expand import cloud_cubemap
+    from probeless.hdr.splat import SplatRenderer, point_spacing
+
+    truth = case.truth_cloud_units
+    splat = SplatRenderer(ctx)
+    objects, _ = make_objects(ctx, case.object_position, 0.12, towards=((1.0, 3.2, 1.4), (3.5, 3.2, 1.4)))
+    spacing = point_spacing(case.points)
+    try:
+        out, covered = {}, {}
+        for name, colors in (("truth", truth), ("scaled", 1.1 * truth), ("ldr", case.ldr_colors)):
+            faces, covered[name] = cloud_cubemap(splat, case.points, colors, spacing, case.object_position, 32)
+            out[name] = objects.render(faces)
+    finally:
+        objects.release()
+        splat.release()
+    for name in ("scaled", "ldr"):
+        np.testing.assert_array_equal(covered[name], covered["truth"])  # holes are the same texels
+    assert 0.05 < 1 - covered["truth"].mean() < 0.95  # the small cloud leaves holes (both sides 0 there)
+    return out
+
+
+@pytest.mark.gl
+def test_the_truth_scores_rms_0_and_ssim_1_against_itself(lit):
+    from probeless.eval.hdr_expand import compare_renderings
+
+    res = compare_renderings(lit["truth"], lit["truth"])
+    assert len(res["views"]) == 2
+    for key in ("diffuse_rms", "ggx_rms"):
+        assert res[key] == 0.0
+    for key in ("diffuse_ssim", "ggx_ssim"):
+        assert res[key] == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.gl
+def test_rendering_rms_is_linear_in_the_cloud_scale_and_ldr_is_darker(lit):
+    """Rendering is linear in the cubemap: 1.1 x truth gives RMS 0.1 x the truth's RMS over the mask. The LDR
+    colours are the truth clipped, so they light the GGX sphere (positive lobe weights) no brighter anywhere,
+    and the baseline's RMS is well above 0."""
+    from probeless.eval.hdr_expand import compare_renderings
+
+    scaled = compare_renderings(lit["scaled"], lit["truth"])
+    ldr = compare_renderings(lit["ldr"], lit["truth"])
+    for kind in ("diffuse", "ggx"):
+        for i, (img, mask) in enumerate(lit["truth"][kind]):
+            expected = 0.1 * np.sqrt(np.mean(img[mask] ** 2))
+            assert scaled["views"][i][f"{kind}_rms"] == pytest.approx(expected, rel=1e-4)
+            assert ldr["views"][i][f"{kind}_rms"] > 0.03
+        assert ldr[f"{kind}_rms"] > scaled[f"{kind}_rms"] > 0  # clipping costs more than a 10 % scale error
+        assert scaled[f"{kind}_ssim"] < 1.0
+    for (a, mask), (b, _) in zip(lit["ldr"]["ggx"], lit["truth"]["ggx"]):
+        assert np.all(a[mask] <= b[mask] * (1 + 1e-5) + 1e-6) and np.mean(a[mask] < b[mask] - 0.05) > 0.05
+
+
+@pytest.mark.gl
+def test_the_two_viewpoints_see_different_ggx_reflections(lit):
+    (a, ma), (b, mb) = lit["truth"]["ggx"]
+    both = ma & mb
+    assert both.mean() > 0.3
+    # a glossy sphere shows a different part of the room from each side; the diffuse one changes less
+    ggx_change = np.abs(a[both] - b[both]).mean() / b[both].mean()
+    (c, _), (d, _) = lit["truth"]["diffuse"]
+    diffuse_change = np.abs(c[both] - d[both]).mean() / d[both].mean()
+    assert ggx_change > 0.2 and ggx_change > diffuse_change
+
+
+# --- the CLI --------------------------------------------------------------------------------------------
+
+@pytest.mark.gl
+def test_eval_ldr_json_pictures_and_figure(case, tmp_path, capsys):
+    args = ["eval", "hdr-expand", str(SCENE), *SMALL, "--methods", "ldr", "--json", "--no-progress",
+            "--pictures", str(tmp_path / "pics"), "--figure", str(tmp_path / "bars.png")]
+    assert main(args) == 0
+    res = json.loads(capsys.readouterr().out)
+    (scene,) = res["scenes"]
+    assert res["roughness"] == 0.3 and res["image"] == 64 and res["face"] == 32 and set(res["units"]) >= {"ggx_rms"}
+    row = scene["methods"]["ldr"]
+    truth = case.truth_cloud_units.astype(np.float64)
+    assert row["cloud_rms"] == pytest.approx(np.sqrt(np.mean((case.ldr_colors - truth) ** 2)), abs=1e-6)
+    assert len(row["views"]) == len(scene["viewpoints"]) == 2
+    for key in KEYS[2:]:
+        assert row[key] == pytest.approx(np.mean([v[key] for v in row["views"]]), abs=2e-6)
+    assert 0 < row["diffuse_rms"] and 0 < row["ggx_rms"] and row["ggx_ssim"] < 1
+    for name in ("pics/light_switch.png", "bars.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert scene["pictures"] == str(tmp_path / "pics" / "light_switch.png")
+    from probeless.eval.hdr_expand import format_table
+
+    table = format_table(res)
+    assert "ggx_ssim" in table and f"{row['ggx_rms']:.4g}" in table and "roughness 0.3" in table
+
+
 @pytest.mark.gl
 @pytest.mark.slow
 def test_eval_json_has_every_method_and_pmatch_beats_ldr_on_overexposed(capsys):
@@ -59,19 +228,13 @@ def test_eval_json_has_every_method_and_pmatch_beats_ldr_on_overexposed(capsys):
     (scene,) = res["scenes"]
     assert set(scene["methods"]) == {"ldr", *METHODS}
     for row in scene["methods"].values():
-        for key in ("cloud_rms", "cloud_rms_overexposed", "diffuse_rms", "diffuse_ssim", "mirror_rms", "mirror_ssim"):
+        for key in KEYS:
             assert np.isfinite(row[key]), key
+        assert len(row["views"]) == 2
     rows = scene["methods"]
     assert rows["pmatch-rgb"]["cloud_rms_overexposed"] < rows["ldr"]["cloud_rms_overexposed"]
     assert rows["pmatch-rgb"]["diffuse_rms"] < rows["ldr"]["diffuse_rms"]
-
-
-def test_synthetic_case_rejects_an_unknown_photo_target():
-    from probeless.errors import HdrError
-    from probeless.hdr.synthetic import synthetic_case
-
-    with pytest.raises(HdrError, match="photo_target"):
-        synthetic_case(SCENE, photo_target="ceiling")
+    assert rows["pmatch-rgb"]["ggx_rms"] < rows["ldr"]["ggx_rms"]
 
 
 def test_eval_rejects_an_unknown_method(capsys):

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from probeless.errors import HdrError
+from probeless.hdr import patchmatch_kernels as _k
 from probeless.hdr.patchmatch import (
     Field,
     exhaustive_nnf,
@@ -30,20 +31,46 @@ def texture() -> np.ndarray:
 
 
 @pytest.mark.slow
-def test_translation_quality_vs_exhaustive(texture):
+@pytest.mark.parametrize("mode", ["rgb", "lum"])
+def test_translation_quality_vs_exhaustive(texture, mode):
     # two disjoint 128^2 crops of one texture: the exact field has no zero-SSD matches
     src = texture[:128, :128]
     tgt = texture[16:144, 152:280]
-    exact = exhaustive_nnf(src, tgt, 7)
-    field = patchmatch(src, tgt, angles=None, scales=None)
+    exact = exhaustive_nnf(src, tgt, 7, mode=mode)
+    field = patchmatch(src, tgt, angles=None, scales=None, mode=mode)  # 5 iterations, as expand_cloud
     # the exact field is a lower bound everywhere (same SSD definition)
     assert np.all(field.ssd >= exact.ssd - 1e-4)
-    ratio = float(field.ssd.mean() / exact.ssd.mean())
-    # measured 1.034 (PatchMatch reaches 0.967 of the exact field's quality in 5 iterations); goal >= 0.9
-    assert ratio <= 1 / 0.9, ratio
+    quality = float(exact.ssd.mean() / field.ssd.mean())
+    # measured 0.967 (rgb), 0.917 (lum; 0.83 before the global samples); goal >= 0.9 (issue 15)
+    assert quality >= 0.9, quality
     assert field.xy.dtype == np.float32 and field.xy.shape == (128, 128, 2)
     assert np.all(field.xy == np.round(field.xy)) and np.all(field.angle == 0) and np.all(field.scale == 1)
-    assert (field.patch, field.iterations, field.mode, field.target_shape) == (7, 5, "rgb", (128, 128))
+    assert (field.patch, field.iterations, field.mode, field.target_shape) == (7, 5, mode, (128, 128))
+    # the generalized field searches a superset: measured 0.86 (rgb), 0.91 (lum) of the exact translation SSD
+    general = patchmatch(src, tgt, mode=mode)
+    assert general.ssd.mean() < 1.0 * exact.ssd.mean()
+
+
+def test_box_means_and_mean_bound():
+    rng = np.random.default_rng(4)
+    t = rng.random((23, 31, 4)).astype(np.float32)
+    sizes = np.array([3, 7, 11], np.int64)
+    got = _k.box_means(t, sizes).reshape(3, 23, 31, 4)
+    for k, q in enumerate(sizes):
+        r = int(q) // 2
+        padded = np.pad(t.astype(np.float64), ((r, r), (r, r), (0, 0)), mode="edge")
+        ref = sum(padded[j:j + 23, i:i + 31] for j in range(q) for i in range(q)) / q ** 2
+        np.testing.assert_allclose(got[k], ref, atol=1e-6)
+    # the mean test's bound p^2 |mean difference|^2 never exceeds the SSD of a translated (edge-padded) patch pair
+    src, tgt = t[:16, :16, :3], t[5:, 9:, :3]
+    means = _k.box_means(np.ascontiguousarray(tgt), np.array([7], np.int64))
+    sp = np.pad(src, ((R, R), (R, R), (0, 0)), mode="edge")
+    tp = np.pad(tgt, ((R, R), (R, R), (0, 0)), mode="edge")
+    for (y, x), (ty, tx) in zip(rng.integers(0, 16, (50, 2)), rng.integers(0, (18, 22), (50, 2))):
+        a, b = sp[y:y + 7, x:x + 7], tp[ty:ty + 7, tx:tx + 7]
+        mu = a.reshape(-1, 3).mean(0).astype(np.float64)
+        bound = _k._mean_bound(mu, means, (ty * tgt.shape[1] + tx) * 3, 3, 49.0)
+        assert bound <= float(((a - b) ** 2).sum()) * (1 + 1e-5) + 1e-9
 
 
 @pytest.mark.parametrize("mode", ["rgb", "lum"])
@@ -91,6 +118,44 @@ def test_generalized_recovers_rotation_and_scale(rotated):
     translation = patchmatch(src, tgt, angles=None, scales=None)
     # measured: ~0.0035 vs ~0.074 mean SSD on the interior
     assert field.ssd[interior].mean() < 0.2 * translation.ssd[interior].mean()
+
+
+@pytest.mark.parametrize("general", [False, True])
+def test_large_images_recover_known_warp(general):
+    # 256^2: the generalized search is matched at half resolution first, then upsampled (coarse to fine);
+    # translation-only matching stays at full resolution
+    n = 256
+    src = synthetic_texture(n, n, seed=5)
+    deg, k = (15, 0.9) if general else (0, 1.0)
+    m = cv2.getRotationMatrix2D((n / 2, n / 2), deg, k)
+    m[:, 2] += (-11, 7) if not general else (0, 0)
+    tgt = cv2.warpAffine(src, m, (n, n), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    ys, xs = np.mgrid[0:n, 0:n]
+    ex = m[0, 0] * xs + m[0, 1] * ys + m[0, 2]
+    ey = m[1, 0] * xs + m[1, 1] * ys + m[1, 2]
+    margin = R * 1.5 + 2
+    interior = (ex > margin) & (ex < n - 1 - margin) & (ey > margin) & (ey < n - 1 - margin)
+    interior &= (xs >= R) & (xs < n - R) & (ys >= R) & (ys < n - R)
+    kw = {} if general else {"angles": None, "scales": None}
+    field = patchmatch(src, tgt, **kw)
+    if general:
+        pos_err = np.hypot(field.xy[..., 0] - ex, field.xy[..., 1] - ey)[interior]
+        assert np.median(pos_err) < 1.0
+        assert np.median(np.degrees(np.abs(field.angle - math.radians(-deg)))[interior]) < 3.0
+        assert np.median(np.abs(field.scale / k - 1)[interior]) < 0.05
+        assert field.ssd[interior].mean() < 0.02  # measured 0.008 (0.014 at full resolution only)
+        before = numba.get_num_threads()
+        numba.set_num_threads(1)
+        try:  # the coarse level keeps the field independent of the number of threads
+            again = patchmatch(src, tgt, **kw)
+        finally:
+            numba.set_num_threads(before)
+        np.testing.assert_array_equal(again.xy, field.xy)
+        np.testing.assert_array_equal(again.ssd, field.ssd)
+    else:
+        # exact matches everywhere (the reflected border gives some pixels a second, equally exact one)
+        assert np.all(field.xy == np.round(field.xy))
+        assert (field.ssd[interior] < 1e-9).mean() > 0.99
 
 
 def test_deterministic_and_thread_independent(rotated):

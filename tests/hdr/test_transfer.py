@@ -131,3 +131,52 @@ def test_expand_with_operator_view_and_checks():
         transfer.expand_with_operator(view, "paper")
     with pytest.raises(HdrError, match="0..1"):
         transfer.expand_with_operator(view * 2, "landis")
+
+
+def _cluster(indices):
+    from probeless.hdr.views import SaturatedCluster
+
+    idx = np.asarray(indices)
+    return SaturatedCluster(idx, np.zeros(3), 1.0, None)
+
+
+def test_cluster_outliers_are_rejected_and_real_variation_kept():
+    rng = np.random.default_rng(0)
+    n = 200
+    # cluster A: an emitter at 4.6 with a lamp's 20.2 fetched into 10 % of it (PatchMatch's clipped ambiguity)
+    a = np.full(n, 4.6)
+    a[rng.choice(n, 20, replace=False)] = 20.2
+    # cluster B: a window whose radiance really varies by 1.8x (a sky gradient): nothing is rejected
+    b = np.linspace(3.0, 5.4, n)
+    y = np.concatenate([a, b, [7.0, 1.0]])  # + a 2-point cluster C, left alone
+    hdr = np.repeat(y[:, None], 3, axis=1).astype(np.float32)
+    valid = np.ones(len(y), bool)
+    valid[5] = False  # a point without a value stays without one
+    clusters = [_cluster(np.arange(n)), _cluster(np.arange(n, 2 * n)), _cluster([2 * n, 2 * n + 1])]
+    v, rejected = transfer.reject_cluster_outliers(hdr, valid, clusters)
+    lamp = np.flatnonzero(a == 20.2)
+    assert rejected == len(lamp) - (5 in lamp)
+    assert not v[lamp].any() and v[np.setdiff1d(np.arange(n), np.append(lamp, 5))].all() and not v[5]
+    assert v[n:].all()
+    # the input mask is not modified
+    assert valid.sum() == len(y) - 1
+
+
+def test_cluster_outliers_spread_widens_the_band():
+    # a cluster whose values spread over 2 stops (MAD-scaled band wider than the factor) loses only far outliers
+    y = np.exp(np.random.default_rng(1).normal(np.log(4.0), 0.5, 400))
+    y[:4] = 4.0 * 40
+    hdr = np.repeat(y[:, None], 3, axis=1).astype(np.float32)
+    v, rejected = transfer.reject_cluster_outliers(hdr, np.ones(400, bool), [_cluster(np.arange(400))])
+    med = np.median(np.log(y))
+    band = 3 * 1.4826 * np.median(np.abs(np.log(y) - med))
+    np.testing.assert_array_equal(v, np.abs(np.log(y) - med) <= band)
+    assert not v[:4].any() and 4 <= rejected < 20
+
+
+def test_cluster_outliers_bad_input():
+    hdr = np.ones((4, 3), np.float32)
+    with pytest.raises(HdrError, match="valid"):
+        transfer.reject_cluster_outliers(hdr, np.ones(3, bool), [])
+    with pytest.raises(HdrError, match="factor"):
+        transfer.reject_cluster_outliers(hdr, np.ones(4, bool), [], factor=1.0)

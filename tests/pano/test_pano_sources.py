@@ -91,6 +91,50 @@ def test_reader_errors(tmp_path):
         VideoFrames(str(junk))
 
 
+def test_exr_round_trip_and_channel_layouts(tmp_path):
+    import OpenEXR
+
+    from probeless.pano.sources import write_hdr_image
+
+    rgb = (np.random.default_rng(3).random((6, 12, 3)) * 800).astype(np.float32)
+    write_hdr_image(tmp_path / "a.exr", rgb)
+    np.testing.assert_array_equal(read_panorama(str(tmp_path / "a.exr")), rgb)  # float32 EXR is lossless
+    half = {c: rgb[..., i].astype(np.float16) for i, c in enumerate("RGB")}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    # separate half-float R, G, B channels (the usual layout of photo software), written by OpenEXR itself
+    with OpenEXR.File(header, {"R": half["R"], "G": half["G"], "B": half["B"]}) as f:
+        f.write(str(tmp_path / "rgb_half.exr"))
+    got = read_panorama(str(tmp_path / "rgb_half.exr"))
+    assert got.dtype == np.float32
+    np.testing.assert_allclose(got, rgb, rtol=2.0 ** -10)
+    rgba = np.concatenate([rgb, np.ones_like(rgb[..., :1])], axis=-1)
+    with OpenEXR.File(header, {"RGBA": rgba}) as f:
+        f.write(str(tmp_path / "rgba.exr"))
+    np.testing.assert_array_equal(read_panorama(str(tmp_path / "rgba.exr")), rgb)
+    with OpenEXR.File(header, {"Y": np.ascontiguousarray(rgb[..., 1])}) as f:
+        f.write(str(tmp_path / "grey.exr"))
+    np.testing.assert_array_equal(read_panorama(str(tmp_path / "grey.exr")), np.repeat(rgb[..., 1:2], 3, axis=-1))
+    with OpenEXR.File(header, {"Z": np.ascontiguousarray(rgb[..., 0])}) as f:
+        f.write(str(tmp_path / "depth.exr"))
+    with pytest.raises(DatasetError, match=r"depth.exr: OpenEXR channels \['Z'\]"):
+        read_panorama(str(tmp_path / "depth.exr"))
+
+
+def test_hdr_write_matches_opencv_rgbe(tmp_path):
+    from probeless.pano.sources import write_hdr_image
+
+    rgb = (np.random.default_rng(4).random((6, 12, 3)) * 50).astype(np.float32)
+    write_hdr_image(tmp_path / "a.hdr", rgb)
+    ref = cv2.imread(str(tmp_path / "a.hdr"), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)[..., ::-1]
+    np.testing.assert_array_equal(read_panorama(str(tmp_path / "a.hdr")), ref)
+    # RGBE: 8 mantissa bits of the largest channel
+    assert np.all(np.abs(ref - rgb) <= rgb.max(axis=-1, keepdims=True) * 2.0 ** -7)
+    with pytest.raises(DatasetError, match="a.png"):
+        write_hdr_image(tmp_path / "a.png", rgb)
+    with pytest.raises(DatasetError, match="b.exr"):
+        write_hdr_image(tmp_path / "b.exr", np.full((2, 2, 3), np.nan, np.float32))
+
+
 def direct_frames(n: int) -> tuple[list[np.ndarray], float, int]:
     cap = cv2.VideoCapture(VIDEO)
     fps, count = cap.get(cv2.CAP_PROP_FPS), int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
