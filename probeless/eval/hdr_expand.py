@@ -8,6 +8,8 @@ method (``ldr``: the unexpanded LDR colours, a baseline; then the methods of
 
 * ``cloud_rms`` / ``cloud_rms_overexposed``: RMS over points and channels of expanded - true radiance,
   all points / the over-exposed ones (:func:`probeless.hdr.transfer.overexposed` of the LDR colours);
+  ``overexposed_ratio_median``, ``overexposed_over_2x``, ``overexposed_under_half``: the over-exposed points'
+  expanded / true luminance, its median and the fractions above 2 and below 1/2 (:func:`luminance_ratios`);
 * ``diffuse_rms`` / ``diffuse_ssim``, ``ggx_rms`` / ``ggx_ssim``: the cubemap path. A cubemap of each cloud
   at the scene's first virtual object (:meth:`SplatRenderer.render_cubemap`, ``--face`` px; texels no
   point covers are 0, and they are the same texels for every method since the same points are splatted)
@@ -141,6 +143,18 @@ def compare_renderings(est: dict, ref: dict) -> dict:
     return {**means, "views": views}
 
 
+def luminance_ratios(est: np.ndarray, truth: np.ndarray) -> dict:
+    """Over-exposed points' estimated / true luminance: ``overexposed_ratio_median`` and the fractions
+    ``overexposed_over_2x`` / ``overexposed_under_half`` (None without such points)."""
+    from probeless.hdr.exposure import luminance
+
+    if not len(est):
+        return {"overexposed_ratio_median": None, "overexposed_over_2x": None, "overexposed_under_half": None}
+    r = luminance(est).astype(np.float64) / np.maximum(luminance(truth).astype(np.float64), 1e-12)
+    return {"overexposed_ratio_median": float(np.median(r)), "overexposed_over_2x": float((r > 2).mean()),
+            "overexposed_under_half": float((r < 0.5).mean())}
+
+
 def rms(a: np.ndarray, b: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean((a.astype(np.float64) - b) ** 2))) if len(a) else None
 
@@ -190,7 +204,7 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
             if images is not None:
                 images[m] = est
             rows[m] = {"cloud_rms": rms(radiance, truth), "cloud_rms_overexposed": rms(radiance[over], truth[over]),
-                       **compare_renderings(est, ref),
+                       **luminance_ratios(radiance[over], truth[over]), **compare_renderings(est, ref),
                        "alpha": report.get("alpha"), "points_expanded": report.get("points_expanded"),
                        "points_filled": report.get("points_filled"), "points_rejected": report.get("points_rejected")}
             tick()

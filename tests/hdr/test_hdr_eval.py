@@ -241,3 +241,14 @@ def test_eval_rejects_an_unknown_method(capsys):
     assert main(["eval", "hdr-expand", str(SCENE), "--methods", "ldr", "nope", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "unknown method 'nope'" in err and "pmatch-rgb" in err
+
+
+def test_luminance_ratios_by_hand():
+    from probeless.eval.hdr_expand import luminance_ratios
+
+    truth = np.full((5, 3), 2.0, np.float32)
+    est = truth * np.array([1.0, 1.0, 0.25, 3.0, 1.5], np.float32)[:, None]  # grey: luminance scales alike
+    r = luminance_ratios(est, truth)
+    assert r["overexposed_ratio_median"] == pytest.approx(1.0)
+    assert r["overexposed_over_2x"] == pytest.approx(0.2) and r["overexposed_under_half"] == pytest.approx(0.2)
+    assert set(luminance_ratios(est[:0], truth[:0]).values()) == {None}
