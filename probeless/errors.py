@@ -86,3 +86,7 @@ class GeometryError(ProbelessError):
 
 class HdrError(ProbelessError):
     """HDR expansion of a point cloud: a bad cloud, photo, view or field (paper 001, §4)."""
+
+
+class PbgiError(ProbelessError):
+    """Point-based global illumination: a bad cloud, hierarchy or render setting (paper 001, §5)."""

@@ -34,7 +34,7 @@ from probeless.hdr.coarse import expand_atlas
 from probeless.hdr.expand import METHODS
 from probeless.messages.geometry import Floorplan
 from probeless.messages.sensor import Image
-from probeless.nodes.hdr.expander import PHOTO_ENCODINGS
+from probeless.nodes.hdr.expander import photo_array
 from probeless.runtime import Node, param
 
 ATLAS_ENCODING = "rgba8"
@@ -78,11 +78,11 @@ class HdrAtlasExpander(Node):
 
     def on_input(self, name: str, msg) -> None:
         if name == "photo":
-            if msg.encoding not in PHOTO_ENCODINGS:
-                self._bad("photo_encoding", f"photo of encoding {msg.encoding!r} ignored, expected "
-                                            f"{' or '.join(PHOTO_ENCODINGS)}")
+            photo, why = photo_array(msg)
+            if photo is None:
+                self._bad("photo_encoding", why)
                 return
-            self.photo = np.asarray(msg.data, np.float32)
+            self.photo = photo
         elif name == "floorplan":
             if self.floorplan is None or not np.array_equal(msg.vertices, self.floorplan.vertices) \
                     or msg.ceiling_height != self.floorplan.ceiling_height:

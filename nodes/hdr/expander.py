@@ -30,6 +30,14 @@ from probeless.runtime import Node, param
 PHOTO_ENCODINGS = ("rgbf32", "rgbf16")
 
 
+def photo_array(msg: Image) -> tuple[np.ndarray | None, str]:
+    """(linear HDR photo as float32 (H, W, 3), "") or (None, why it is refused): the ``photo`` input of the
+    HDR nodes."""
+    if msg.encoding not in PHOTO_ENCODINGS:
+        return None, f"photo of encoding {msg.encoding!r} ignored, expected {' or '.join(PHOTO_ENCODINGS)}"
+    return np.asarray(msg.data, np.float32), ""
+
+
 class HdrExpander(Node):
     """``cloud`` (PointCloud) + ``photo`` (rgbf32/rgbf16) -> ``cloud`` (HdrPointCloud), see the module docstring."""
 
@@ -64,11 +72,11 @@ class HdrExpander(Node):
 
     def on_input(self, name: str, msg) -> None:
         if name == "photo":
-            if msg.encoding not in PHOTO_ENCODINGS:
-                self._bad("photo_encoding", f"photo of encoding {msg.encoding!r} ignored, expected "
-                                            f"{' or '.join(PHOTO_ENCODINGS)}")
+            photo, why = photo_array(msg)
+            if photo is None:
+                self._bad("photo_encoding", why)
                 return
-            self.photo = np.asarray(msg.data, np.float32)
+            self.photo = photo
         else:
             if len(msg) == 0:  # a SLAM model before its first fusion: nothing to expand yet, not an error
                 self.empty_clouds += 1

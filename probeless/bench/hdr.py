@@ -12,7 +12,8 @@ What runs is the shipped command, ``probeless hdr expand CLOUD.ply --photo PHOTO
 Building them is off the clock (``cloud_build_s``). The clock runs from the process start to its exit
 (``end_to_end_s``: reading, exposure matching, the view, PatchMatch, projection, Poisson fill, writing the
 HDR PLY), best of ``--repeat`` runs after one untimed warm-up run (``cold_run_s``: the first run, which
-may compile the numba kernels into the cache). ``stages_ms`` are the best run's own stage timings.
+may compile the numba kernels into the cache; ``--quick`` has no warm-up run, ``cold_run_s`` null).
+``stages_ms`` are the best run's own stage timings.
 
 Quality gates, checked in the same run:
 
@@ -182,8 +183,10 @@ def measure(ns) -> dict:
     with tempfile.TemporaryDirectory(prefix="probeless-bench-hdr-") as tmp:
         ply, hdr = write_inputs(case, Path(tmp))
         out = Path(tmp) / "hdr_cloud.ply"
-        log("warm-up run")
-        cold_s, _ = run_expand(ply, hdr, out, ns.method, size)
+        cold_s = None
+        if not quick:
+            log("warm-up run")
+            cold_s, _ = run_expand(ply, hdr, out, ns.method, size)
         runs = []
         for i in range(repeat):
             log(f"timed run {i + 1}/{repeat}")

@@ -276,7 +276,8 @@ def test_pipeline_with_hdr_lighting_publishes_linear_hdr_envmaps(tmp_path):
 
     graph = load_checked(str(REPO / "launch/probeless.yaml"),
                          {"lighting": "hdr", "scene": str(REPO / "launch/scenes/convex_room.yaml"), "seconds": 2.0,
-                          "atlas_size": 512, "hdr_period_s": 60.0, "out_dir": str(tmp_path)})
+                          "atlas_size": 512, "hdr_period_s": 60.0, "out_dir": str(tmp_path),
+                          "hdr_method": "landis-pc"})  # the graph, not PatchMatch (tested on its own)
     assert {"photo", "hdr_atlas", "hdr_dense", "envmap"} <= set(graph.nodes)
     bag = str(tmp_path / "run.mcap")
     add_recorder(graph, bag, topics=["envmap/envmap/sphere", "hdr_atlas/atlas", "compositor/image"],
@@ -293,5 +294,5 @@ def test_pipeline_with_hdr_lighting_publishes_linear_hdr_envmaps(tmp_path):
     assert np.isfinite(faces).all() and faces.min() >= 0
     assert faces.max() > 1.5, faces.max()  # the lamps: above LDR white, which an LDR map clips at 1
     assert any(t == "compositor/image" for t, _ in msgs)
-    assert "expansion 1 (pmatch-rgb)" in log.getvalue()
+    assert "expansion 1 (landis-pc)" in log.getvalue()
     assert (tmp_path / "cubemap_net_sphere.png").exists()
