@@ -35,6 +35,8 @@ BUILTIN: dict[str, str] = {
     "hdr_atlas_expander": "probeless.nodes.hdr.atlas_expander:HdrAtlasExpander",
     "cloud_file": "probeless.nodes.hdr.cloud_file:CloudFile",
     "hdr_cloud_writer": "probeless.nodes.hdr.writer:HdrCloudWriter",
+    "pbgi_renderer": "probeless.nodes.pbgi.renderer:PbgiRendererNode",
+    "cloud_views": "probeless.nodes.pbgi.views:CloudViews",
     "bench_source": "probeless.nodes.bench.bus:BenchSource",
     "bench_sink": "probeless.nodes.bench.bus:BenchSink",
     "bench_camera_source": "probeless.nodes.bench.bag:CameraSource",

@@ -162,6 +162,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_hdr_parser(sub)
 
+    from probeless.pbgi.cli import add_pbgi_parser
+
+    add_pbgi_parser(sub)
+
     from probeless.coarse.cli import add_coarse_parser
 
     # old spellings of evaluations: `coarse eval` (beside `coarse preview`), `pano glossy|diffuse|itmo`

@@ -93,15 +93,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common_options(p, figure=("--figure", "bar chart of the rendering RMS per method and scene"))
 
 
-# --- lighting: cubemap of a cloud, GGX prefilter --------------------------------------------------
-
-def cloud_cubemap(renderer, points, colors, spacing, position, face: int) -> tuple[np.ndarray, np.ndarray]:
-    """((6, face, face, 3) float32 cubemap of the cloud's colours at ``position``, 0 where no point;
-    (6, face, face) bool: a point covers the texel)."""
-    views = renderer.render_cubemap(points, colors.astype(np.float32), spacing, np.asarray(position, np.float64),
-                                    face)
-    return np.stack([v.color for v in views]).astype(np.float32), np.stack([v.mask for v in views])
-
+# --- lighting: cameras, SSIM --------------------------------------------------------------------
 
 def viewpoints(centre, radius: float, towards, size: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """[(K, world_from_camera)] of pinholes ``size`` px square at ``VIEW_DISTANCE`` radii from ``centre``
@@ -166,7 +158,7 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
     from probeless.geom.cube import cube_solid_angles
     from probeless.gl.context import create_context
     from probeless.hdr.expand import expand_cloud
-    from probeless.hdr.splat import SplatRenderer, point_spacing
+    from probeless.hdr.splat import SplatRenderer, cloud_cubemap, point_spacing
     from probeless.hdr.synthetic import synthetic_case
     from probeless.hdr.transfer import overexposed
     from probeless.ibl.probes import ProbeRenderer

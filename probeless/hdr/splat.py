@@ -282,3 +282,11 @@ class SplatRenderer:
             fbo.depth_attachment.release()
             fbo.release()
         self._fbos.clear()
+
+
+def cloud_cubemap(renderer, points, colors, spacing, position, face: int) -> tuple[np.ndarray, np.ndarray]:
+    """((6, face, face, 3) float32 cubemap of the cloud's colours at ``position``, 0 where no point;
+    (6, face, face) bool: a point covers the texel)."""
+    views = renderer.render_cubemap(points, colors.astype(np.float32), spacing, np.asarray(position, np.float64),
+                                    face)
+    return np.stack([v.color for v in views]).astype(np.float32), np.stack([v.mask for v in views])

@@ -1,5 +1,9 @@
 """Materials of virtual objects, each a small frozen parameter set, and their combination.
 
+:class:`Principled` is the Disney-style base colour / roughness / metalness material (evaluated exactly by the
+point-based GI renderer, probeless.pbgi); this IBL renderer reduces it to one :class:`Shading` like the others
+and ignores its texture maps (it uses the constant values).
+
 Every material reduces to one :class:`Shading`: a diffuse term (albedo times SH irradiance / pi, or
 shadowed PRT), one specular lobe (colour times the environment along the reflected ray, blurred by
 roughness) and a refraction term (tint times the environment along the refracted ray, mixed with
@@ -11,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -44,6 +49,22 @@ class Diffuse:
 
 
 @dataclass(frozen=True)
+class Principled:
+    """Disney "principled" subset: metals tint their specular, non-metals reflect 4 % plus a diffuse base colour.
+
+    A map, when given, replaces the constant in the PBGI renderer (which reads it; UVs from the mesh): the base
+    colour map is sRGB-encoded (8/16 bit) or linear (float files), roughness and metalness maps are linear 0..1.
+    """
+
+    base_color: RGB = (0.8, 0.8, 0.8)  # linear base colour per channel: albedo, or f0 of a metal [0..1]
+    roughness: float = 0.5             # perceptual roughness (GGX alpha = roughness²) [0..1]
+    metalness: float = 0.0             # 0 = dielectric (f0 0.04), 1 = metal (f0 = base colour) [0..1]
+    base_color_map: str | None = None  # image file of the base colour (sRGB) or None
+    roughness_map: str | None = None   # image file of the roughness (linear, first channel) or None
+    metalness_map: str | None = None   # image file of the metalness (linear, first channel) or None
+
+
+@dataclass(frozen=True)
 class Mix:
     layers: tuple[tuple[float, Any], ...]  # (weight, material) pairs, summed
 
@@ -70,6 +91,10 @@ def shading(material, weight: float = 1.0) -> Shading:
         return Shading(kt=weight * np.array(material.tint, float), ior=material.ior)
     if isinstance(material, Diffuse):
         return Shading(kd=weight * np.array(material.albedo, float), shadowed=material.shadowed)
+    if isinstance(material, Principled):  # maps ignored here (module doc)
+        base, m = np.array(material.base_color, float), float(material.metalness)
+        return Shading(kd=weight * base * (1 - m), ks=weight * (0.04 * (1 - m) + base * m),
+                       roughness=float(material.roughness))
     if isinstance(material, Mix):
         parts = [shading(m, weight * w) for w, m in material.layers]
         spec = {p.roughness for p in parts if p.ks.any()}
@@ -82,7 +107,8 @@ def shading(material, weight: float = 1.0) -> Shading:
     raise SceneError(f"not a material: {material!r}")
 
 
-_TYPES = {"mirror": Mirror, "metal": Metal, "glass": Glass, "diffuse": Diffuse}
+_TYPES = {"mirror": Mirror, "metal": Metal, "glass": Glass, "diffuse": Diffuse, "principled": Principled}
+MAP_KEYS = ("base_color_map", "roughness_map", "metalness_map")
 
 
 def material_from_dict(spec: Mapping[str, Any], where: str = "material"):
@@ -112,6 +138,8 @@ def material_from_dict(spec: Mapping[str, Any], where: str = "material"):
     unknown = set(rest) - known
     if unknown:
         raise SceneError(f"{where}: unknown keys {sorted(unknown)} for {kind} (known: {sorted(known)})")
+    if kind == "principled":
+        return _principled(rest, where)
     values = {k: tuple(float(x) for x in v) if isinstance(v, (list, tuple)) else v for k, v in rest.items()}
     for key in ("colour", "tint", "albedo"):
         if key in values and len(values[key]) != 3:
@@ -121,3 +149,32 @@ def material_from_dict(spec: Mapping[str, Any], where: str = "material"):
     if kind == "glass" and not float(values.get("ior", 1.5)) > 0:
         raise SceneError(f"{where}.ior: must be > 0, got {values['ior']}")
     return cls(**values)
+
+
+def _principled(values: Mapping[str, Any], where: str) -> Principled:
+    """A :class:`Principled` from its checked keys (known keys already checked); map files must exist."""
+    out: dict[str, Any] = {}
+    if "base_color" in values:
+        v = values["base_color"]
+        try:
+            out["base_color"] = tuple(float(x) for x in v)
+        except (TypeError, ValueError):
+            raise SceneError(f"{where}.base_color: needs 3 numbers (linear RGB), got {v!r}") from None
+        if len(out["base_color"]) != 3 or not all(0.0 <= x <= 1.0 for x in out["base_color"]):
+            raise SceneError(f"{where}.base_color: needs 3 values in [0, 1] (linear RGB), got {v!r}")
+    for key in ("roughness", "metalness"):
+        if key in values:
+            v = values[key]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= float(v) <= 1.0:
+                raise SceneError(f"{where}.{key}: must be a number in [0, 1], got {v!r}")
+            out[key] = float(v)
+    for key in MAP_KEYS:
+        v = values.get(key)
+        if v is None:
+            continue
+        if not isinstance(v, str) or not v:
+            raise SceneError(f"{where}.{key}: must be an image file path, got {v!r}")
+        if not Path(v).is_file():
+            raise SceneError(f"{where}.{key}: image file not found: {v}")
+        out[key] = v
+    return Principled(**out)

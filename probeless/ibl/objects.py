@@ -9,6 +9,7 @@
       yaw_deg: 30                     # about world z
       up: y                           # the file's up axis (y or z)
       material: {type: metal, colour: [0.95, 0.64, 0.54], roughness: 0.3}
+                                      # a material with texture maps (principled) loads the mesh's UVs too
       contact_shadow: true            # differential-rendering shadow on the plane below
 """
 
@@ -21,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from probeless.errors import SceneError
-from probeless.ibl.materials import material_from_dict
-from probeless.ibl.mesh_io import load_mesh, place
+from probeless.ibl.materials import MAP_KEYS, material_from_dict
+from probeless.ibl.mesh_io import load_mesh, load_mesh_uv, place
 from probeless.ibl.render import IblObject
 
 KEYS = {"id", "mesh", "position", "radius", "scale", "yaw_deg", "up", "anchor", "material", "contact_shadow",
@@ -42,15 +43,19 @@ def object_from_dict(spec: Mapping[str, Any], where: str = "objects[0]") -> IblO
     if position.shape != (3,) or not np.all(np.isfinite(position)):
         raise SceneError(f"{where}.position: expected [x, y, z], got {spec['position']!r}")
     mesh_path = spec["mesh"] if spec["mesh"] == "sphere" else Path(spec["mesh"])
+    material = material_from_dict(spec["material"], f"{where}.material")
+    textured = any(getattr(material, key, None) for key in MAP_KEYS)
     try:
-        v, f = load_mesh(mesh_path)
+        v, f, uvs = load_mesh_uv(mesh_path) if textured else (*load_mesh(mesh_path), None)
+        if textured and uvs is None:
+            raise SceneError(f"{mesh_path}: the material has texture maps but the mesh has no texture coordinates")
         placed = place(v, f, position, radius=spec.get("radius"), scale=float(spec.get("scale", 1.0)),
                        yaw_deg=float(spec.get("yaw_deg", 0.0)), up=spec.get("up", "y"),
-                       anchor=spec.get("anchor", "center"))
+                       anchor=spec.get("anchor", "center"), uvs=uvs)
     except SceneError as exc:
         raise SceneError(f"{where}: {exc}") from None
     floor_z = spec.get("floor_z")
-    return IblObject(str(spec["id"]), placed, material_from_dict(spec["material"], f"{where}.material"),
+    return IblObject(str(spec["id"]), placed, material,
                      contact_shadow=bool(spec.get("contact_shadow", True)),
                      floor_z=None if floor_z is None else float(floor_z),
                      shadow_extent=float(spec.get("shadow_extent", 4.0)), prt_dirs=int(spec.get("prt_dirs", 512)))

@@ -12,9 +12,16 @@
 * **propagate** -- bottom-up: count-weighted colour mean, the minimal sphere enclosing both child spheres (so a parent
   contains its children and every point under it), the minimal cone enclosing both child cones (half-angle pi:
   all directions);
-* **prune** -- a node whose *colour variance* is below ``tc`` and whose *normal agreement* is above ``tn`` becomes a
-  leaf (a cluster) and its sub-tree is dropped. Colour variance: the largest over R, G, B of the (population)
-  variance of the colours of the points under the node. Normal agreement: cos of the normal cone's half-angle;
+* **prune** -- a node whose *colour variation* is below ``tc`` and whose *normal agreement* is above ``tn`` becomes a
+  leaf (a cluster) and its sub-tree is dropped. The paper measures colour variation as the average distance of the
+  points' colours from the node colour; here it is the root-mean-square distance (sqrt of the summed per-channel
+  population variances: it propagates bottom-up exactly, and bounds the average distance from above, so this prunes
+  no more than the paper's rule). A variance (squared units) would prune far more: a cluster with 2 % saturated red
+  points in a grey wall has variance ~0.004 < 0.01 but RMS distance ~0.09. Normal agreement: cos of the normal
+  cone's half-angle (the paper: the average dot product, which is never smaller). Not in the paper: a cluster's
+  bounding radius must also be at most ``max_radius`` -- a uniform wall would otherwise collapse into one sphere
+  metres wide that a receiver 30 cm away sits inside and cannot refine (at 32² micro-buffers a node is splatted
+  whole once it subtends 4 texels: 2.6 cm at 30 cm, hence the default 3 cm);
 * **linearise** -- the pruned tree in depth-first order as :data:`NODE_DTYPE` records (the paper's 40-byte node).
 
 Node numbering of the full binary tree (:class:`Bsh` arrays of length ``2L - 1``): inner node ``i`` is ``i`` (root
@@ -47,6 +54,7 @@ from probeless.pbgi import bsh_kernels as _k
 NODE_DTYPE = np.dtype([("center", "<f4", (3,)), ("radius", "<f4"), ("color", "<f4", (3,)),
                        ("cone", "<u4"), ("skip", "<u4"), ("right", "<u4")])
 NO_CHILD = 0xFFFFFFFF
+MAX_CLUSTER_RADIUS = 0.03  # [m] largest pruned cluster (see the module docstring)
 STAGES = ("input", "morton", "sort", "leaves", "karras", "propagate", "prune", "linearise")
 
 
@@ -80,7 +88,7 @@ class Bsh:
     center: np.ndarray
     radius: np.ndarray
     color: np.ndarray  # mean colour
-    color_var: np.ndarray  # max over channels of the colour variance
+    color_dev: np.ndarray  # RMS distance of the points' colours from the node colour (colour units)
     normal: np.ndarray  # mean normal, renormalised
     axis: np.ndarray  # normal cone
     angle: np.ndarray
@@ -166,7 +174,8 @@ def unpack_cone(cone: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _decode_oct(c & 0xFFF, (c >> 12) & 0xFFF), ((c >> 24) & 0xFF) * (math.pi / 255)
 
 
-def build_bsh(points, colors, normals, *, voxel: float | None = None, tc: float = 0.01, tn: float = 0.98) -> Bsh:
+def build_bsh(points, colors, normals, *, voxel: float | None = None, tc: float = 0.01, tn: float = 0.98,
+              max_radius: float = MAX_CLUSTER_RADIUS) -> Bsh:
     """The BSH of a cloud ((N, 3) points, colours, normals; normals need not be unit). See the module docstring."""
     t = {s: 0.0 for s in STAGES}
     t0 = time.perf_counter()
@@ -174,6 +183,8 @@ def build_bsh(points, colors, normals, *, voxel: float | None = None, tc: float 
     for name, v in (("tc", tc), ("tn", tn)):
         if not (isinstance(v, numbers.Real) and math.isfinite(v)):
             raise _err(f"'{name}' must be a finite number, got {v!r}")
+    if not (isinstance(max_radius, numbers.Real) and max_radius >= 0):  # inf: no cap (the paper's rule alone)
+        raise _err(f"'max_radius' must be a number >= 0 (inf: no cap), got {max_radius!r}")
     lo = pts.min(0)
     side = float((pts.max(0) - lo).max())
     vmin = side / ((1 << _k.BITS) - 1)  # the smallest voxel whose cells fit 21 bits
@@ -215,8 +226,8 @@ def build_bsh(points, colors, normals, *, voxel: float | None = None, tc: float 
     ln = np.linalg.norm(nmean, axis=1, keepdims=True)
     nmean = np.where(ln > 1e-12, nmean / np.maximum(ln, 1e-300), ax)
     t6 = time.perf_counter()
-    cvar = cm2.max(1) / count
-    cluster = (cvar[:o] < tc) & (np.cos(ang[:o]) > tn)
+    cvar = np.sqrt(cm2.sum(1) / count)
+    cluster = (cvar[:o] < tc) & (np.cos(ang[:o]) > tn) & (rad[:o] <= max_radius)
     t7 = time.perf_counter()
     ids, skip, rlin = _k.linearise(left, right, order, cluster)
     nodes = np.empty(ids.shape[0], NODE_DTYPE)
@@ -234,7 +245,7 @@ def build_bsh(points, colors, normals, *, voxel: float | None = None, tc: float 
     rep = BshReport(n_points=pts.shape[0], n_leaves=nl, n_nodes=m, n_nodes_pruned=int(ids.shape[0]),
                     n_clusters=int((rlin < 0).sum()), voxel=float(voxel), times=t)
     return Bsh(nodes=nodes, ids=ids, codes=ucodes, left=left, right=right, parent=parent, count=count, position=pos,
-               center=cen, radius=rad, color=cmean, color_var=cvar, normal=nmean, axis=ax, angle=ang,
+               center=cen, radius=rad, color=cmean, color_dev=cvar, normal=nmean, axis=ax, angle=ang,
                cluster=cluster, point_leaf=point_leaf, report=rep)
 
 

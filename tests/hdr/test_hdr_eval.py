@@ -127,8 +127,7 @@ def test_viewpoints_look_at_the_object_from_4_radii_towards_each_target():
 def lit(case, ctx):
     """Renderings (face 32, 64 px) of the spheres at the case's object lit by the true cloud, 1.1 x the true
     cloud and the LDR colours."""
-    from probeless.eval.hdr_expand import cloud_cubemap
-    from probeless.hdr.splat import SplatRenderer, point_spacing
+    from probeless.hdr.splat import SplatRenderer, cloud_cubemap, point_spacing
 
     truth = case.truth_cloud_units
     splat = SplatRenderer(ctx)

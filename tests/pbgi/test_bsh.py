@@ -128,7 +128,9 @@ def test_spheres_cones_colours_against_the_points(tree_and_cloud):
             assert (nrm[idx] @ tree.axis[v]).min() >= math.cos(tree.angle[v]) - TOL
         np.testing.assert_allclose(tree.color[v], col[idx].mean(0), atol=1e-9)
         np.testing.assert_allclose(tree.position[v], pts[idx].mean(0), atol=1e-9)
-        assert tree.color_var[v] == pytest.approx(col[idx].var(0).max(), abs=1e-9)
+        assert tree.color_dev[v] == pytest.approx(math.sqrt(col[idx].var(0).sum()), abs=1e-9)
+        mean_dist = np.linalg.norm(col[idx] - col[idx].mean(0), axis=1).mean()  # the paper's measure
+        assert mean_dist <= tree.color_dev[v] + 1e-9
         m = nrm[idx].mean(0)
         np.testing.assert_allclose(tree.normal[v], m / np.linalg.norm(m), atol=1e-9)
         if v < nl - 1:
@@ -200,12 +202,16 @@ def wall(n_side: int, checker: bool):
 
 
 def test_pruning_flat_wall_collapses_checkerboard_does_not():
-    flat = bsh.build_bsh(*wall(100, False)).report
-    chk = bsh.build_bsh(*wall(100, True)).report
+    flat = bsh.build_bsh(*wall(100, False), max_radius=math.inf).report  # the paper's rule alone
+    chk = bsh.build_bsh(*wall(100, True), max_radius=math.inf).report
     assert flat.n_nodes > 10_000 and chk.n_nodes > 10_000
     assert flat.n_clusters <= 4 and flat.n_nodes_pruned <= 7
     assert chk.n_clusters >= 100  # at least one per square of the 10 x 10 checkerboard
     assert chk.n_nodes_pruned == 2 * chk.n_clusters - 1
+    capped = bsh.build_bsh(*wall(100, False))  # default max_radius: clusters of at most 3 cm
+    leaf = capped.nodes["right"] == bsh.NO_CHILD
+    assert capped.nodes["radius"][leaf].max() <= bsh.MAX_CLUSTER_RADIUS + 1e-6
+    assert 100 < capped.report.n_clusters < capped.report.n_leaves / 5
 
 
 def rec_traversal(tree, refine_id):
