@@ -1,4 +1,4 @@
-"""The sRGB transfer function (IEC 61966-2-1), one copy for the whole project.
+"""The sRGB transfer function (IEC 61966-2-1) and Rec.709 luminance, one copy for the whole project.
 
 Names say the direction: ``srgb_to_linear`` / ``linear_to_srgb`` map floats to floats,
 ``from_srgb8`` decodes 8-bit sRGB codes to linear floats, ``to_srgb8`` encodes linear floats to
@@ -10,6 +10,8 @@ curve. Linear values are scene- or camera-referred with 1.0 = white; sRGB-encode
 from __future__ import annotations
 
 import numpy as np
+
+from probeless.errors import ProbelessError
 
 
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:
@@ -57,3 +59,14 @@ def to_srgb8(linear: np.ndarray) -> np.ndarray:
 def quantize8(values: np.ndarray) -> np.ndarray:
     """Values already in their encoding (e.g. sRGB values 0..1) -> uint8 codes 0..255: rounded, clipped; no curve."""
     return np.clip(np.round(np.asarray(values) * 255.0), 0, 255).astype(np.uint8)
+
+
+REC709_Y = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)  # CIE Y of linear Rec.709 / sRGB primaries
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    """CIE Y of linear Rec.709 RGB: (..., 3) -> (...,) float32, ``0.2126 R + 0.7152 G + 0.0722 B``."""
+    a = np.asarray(rgb, dtype=np.float32)
+    if a.ndim < 1 or a.shape[-1] != 3:
+        raise ProbelessError(f"luminance: expected an (..., 3) RGB array, got shape {a.shape}")
+    return a @ REC709_Y

@@ -31,6 +31,7 @@ from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.pbgi.bsh import MAX_CLUSTER_RADIUS
 from probeless.pbgi.cloud import cloud_arrays
 from probeless.pbgi.relight import FAR_FACE, MODES, Relighter, composite_relit, pbgi_objects, pbgi_objects_problem
+from probeless.pbgi.render import SUPERSAMPLE
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ExactTimeSync
 
@@ -49,6 +50,9 @@ class PbgiRendererNode(Node):
                                              "materials diffuse, metal, mirror or principled")
         variant: str = param("hybrid", choices=("classic", "mipmapped", "hybrid"), doc="micro-buffer traversal")
         micro: int = param(24, choices=(16, 24, 32), doc="micro-buffer side [texels]")
+        supersample: int = param(SUPERSAMPLE, choices=(1, 2, 3, 4),
+                                 doc="micro-buffer raster texels per texel side (1: the paper's; "
+                                     "probeless.pbgi.render)")
         mode: str = param("full", choices=MODES, doc="full: PBGI of the whole cloud; near_field: PBGI within "
                                                       "near_radius, cubemap beyond; envmap: the cubemap only")
         near_radius: float = param(1.0, min=0.01, max=1e3, doc="near_field: radius about each object's centre [m]")
@@ -72,7 +76,8 @@ class PbgiRendererNode(Node):
         self.relighter = Relighter(pbgi_objects(p.objects), mode=p.mode, near_radius=p.near_radius,
                                    far_face=p.far_face, tc=p.tc, tn=p.tn, voxel=p.voxel or None,
                                    max_radius=p.max_cluster, variant=p.variant,
-                                   micro=p.micro, exposure=p.exposure, near=p.near, far=p.far)
+                                   micro=p.micro, supersample=p.supersample, exposure=p.exposure,
+                                   near=p.near, far=p.far)
         names = ["rgb", "pose"] + (["depth"] if p.occlusion else [])
         self.sync = ExactTimeSync(names, self._on_frame, on_unmatched=self._unmatched)
         self.info: CameraInfo | None = None

@@ -23,6 +23,8 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "dense": ("probeless.bench.dense", "dense model cubemap rendering vs Open3D raycast"),
     "pano": ("probeless.bench.pano", "360° video IBL: ITMO, diffuse map, compositing, brute force side by side"),
     "hdr": ("probeless.bench.hdr", "HDR expansion of a 0.8M-point cloud end to end (paper 001, Table 1)"),
+    "pbgi": ("probeless.bench.pbgi",
+             "PBGI: BSH build, Classic / Mipmapped / Hybrid time and memory (paper 001, Table 3)"),
 }
 
 __all__ = ["BENCHMARKS"]

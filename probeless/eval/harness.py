@@ -61,6 +61,8 @@ EVALUATIONS: dict[str, Evaluation] = {
     "hdr-envmap": Evaluation("probeless.eval.hdr_envmap", "HDR coarse and dense models (paper 001 §4 on paper 003's "
                                                           "models): environment maps vs the rig's linear truth, "
                                                           "LDR vs HDR"),
+    "pbgi": Evaluation("probeless.eval.pbgi", "PBGI and environment-map renderings of a sphere vs Mitsuba 3, one "
+                                              "bounce (paper 001, Figure 14)"),
 }
 
 # help of a command group that only holds old spellings (created by add_old_spellings)

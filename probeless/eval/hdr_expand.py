@@ -10,7 +10,8 @@ method (``ldr``: the unexpanded LDR colours, a baseline; then the methods of
   all points / the over-exposed ones (:func:`probeless.hdr.transfer.overexposed` of the LDR colours);
   ``overexposed_ratio_median``, ``overexposed_over_2x``, ``overexposed_under_half``: the over-exposed points'
   expanded / true luminance, its median and the fractions above 2 and below 1/2 (:func:`luminance_ratios`);
-* ``diffuse_rms`` / ``diffuse_ssim``, ``ggx_rms`` / ``ggx_ssim``: the cubemap path. A cubemap of each cloud
+* ``diffuse_rms`` / ``diffuse_ssim``, ``ggx_rms`` / ``ggx_ssim``: by default (``--renderer cubemap``,
+  :class:`CubemapProbes`) the cubemap path. A cubemap of each cloud
   at the scene's first virtual object (:meth:`SplatRenderer.render_cubemap`, ``--face`` px; texels no
   point covers are 0, and they are the same texels for every method since the same points are splatted)
   lights, through the IBL renderer (:class:`probeless.ibl.render.IblRenderer`, no contact shadow, exposure
@@ -28,6 +29,13 @@ method (``ldr``: the unexpanded LDR colours, a baseline; then the methods of
   window sigma 1.5, population covariances; data range the true rendering's maximum; per channel) averaged
   over the sphere's pixels of the SSIM map (the black background would add SSIM 1 everywhere else). The
   ``diffuse_*`` / ``ggx_*`` values are the means over the two viewpoints; ``views`` holds them per viewpoint.
+* the same with ``--renderer pbgi`` (paper Table 2's rendering columns): the same two spheres, viewpoints and
+  metrics, but each drawn by point-based GI (:class:`probeless.eval.hdr_pbgi.PbgiProbes`: ``lambert`` albedo 1
+  and ``ggx`` f0 1 BRDFs of :mod:`probeless.pbgi.materials`, ``--variant``, ``--micro``) lit by the
+  bounding-sphere hierarchy of each cloud, normals estimated once and turned towards the object; ``--tc``
+  0 by default, so every cloud gets the same tree and the renderings differ by their lighting alone. The sphere
+  itself is the receiver, inside the cloud, so nearby walls weigh as they do at each of its points, not as
+  seen from its centre.
 
 Where the HDR photo looks matters (``--photo-target``): a photo that also sees a ceiling lamp lets
 PatchMatch match saturated white patches of the cloud to the lamp (convex_room with ``overexposed``), and
@@ -49,11 +57,12 @@ BASELINE = "ldr"
 GGX_ROUGHNESS = 0.3   # perceptual roughness of the GGX sphere (alpha = roughness^2)
 VIEW_DISTANCE = 4.0   # camera distance from the object's centre [object radii]
 VIEW_FILL = 0.8       # the sphere's silhouette spans this fraction of the image width
+RENDERERS = ("cubemap", "pbgi")
 UNITS = {"cloud_rms": "cloud units (exposure x linear radiance; 1 = LDR white), over points and channels",
-         "diffuse_rms": "cloud units, over the pixels of a Lambertian sphere (albedo 1) lit by the cloud's "
-                        "cubemap, mean of two viewpoints",
+         "diffuse_rms": "cloud units, over the pixels of a Lambertian sphere (albedo 1) lit by the cloud (its "
+                        "cubemap or PBGI: 'renderer'), mean of two viewpoints",
          "ggx_rms": "cloud units, over the pixels of a GGX sphere (colour 1, roughness in 'roughness') lit by the "
-                    "cloud's cubemap, mean of two viewpoints",
+                    "cloud (its cubemap or PBGI: 'renderer'), mean of two viewpoints",
          "ssim": "skimage SSIM (Gaussian sigma 1.5, population covariances, data range = the true rendering's "
                  "maximum) averaged over the sphere's pixels, mean of two viewpoints"}
 
@@ -65,8 +74,10 @@ def all_methods() -> tuple[str, ...]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    """``probeless eval hdr-expand SCENE... [--methods ...] [--views N] [--size PX] [--json] [--figure OUT.png]
-    [--pictures DIR]``."""
+    """``probeless eval hdr-expand SCENE... [--methods ...] [--views N] [--size PX] [--renderer cubemap|pbgi]
+    [--json] [--figure OUT.png] [--pictures DIR]``."""
+    from probeless.eval.hdr_pbgi import BSH_TC, MICRO_SIZES, VARIANTS
+
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene YAML files (launch/scenes/*.yaml)")
     p.add_argument("--methods", nargs="+", metavar="METHOD",
                    help="ldr (baseline) and expand_cloud methods (default: all)")
@@ -88,6 +99,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="pmatch: the paper's raw field, no rejection of values disagreeing with their clipped cluster")
     p.add_argument("--roughness", type=float, default=GGX_ROUGHNESS,
                    help=f"perceptual roughness of the GGX sphere, alpha = roughness^2 (default {GGX_ROUGHNESS})")
+    p.add_argument("--renderer", choices=RENDERERS, default="cubemap",
+                   help="light the spheres through each cloud's cubemap at the object (IBL) or by point-based GI "
+                        "(default cubemap)")
+    p.add_argument("--variant", choices=VARIANTS, default="hybrid", help="PBGI micro-buffer variant (default hybrid)")
+    p.add_argument("--micro", type=int, choices=MICRO_SIZES, default=24, help="PBGI micro-buffer side (default 24)")
+    p.add_argument("--tc", type=float, default=BSH_TC,
+                   help=f"PBGI hierarchy's colour threshold (default {BSH_TC:g}: the same tree for every cloud; "
+                        "the paper's 0.01 prunes by colour)")
     p.add_argument("--pictures", metavar="DIR",
                    help="write DIR/<scene>.png: each method's GGX and diffuse renderings next to the truth")
     add_common_options(p, figure=("--figure", "bar chart of the rendering RMS per method and scene"))
@@ -153,15 +172,57 @@ def rms(a: np.ndarray, b: np.ndarray) -> float | None:
 
 # --- one scene ------------------------------------------------------------------------------------
 
+class CubemapProbes:
+    """The cubemap path: each radiance of the cloud ``points`` splatted into a cubemap at ``centre`` (``face`` px)
+    lights the spheres of :class:`ProbeRenderer`; ``covered``: the texels the last cubemap's points cover (the
+    same for every radiance)."""
+
+    def __init__(self, ctx, points, centre, radius: float, roughness: float, cameras, size: int, face: int):
+        from probeless.hdr.splat import SplatRenderer, point_spacing
+        from probeless.ibl.probes import ProbeRenderer
+
+        self.points, self.centre, self.face = points, centre, face
+        self.spacing = point_spacing(points)
+        self.splat = SplatRenderer(ctx)
+        self.probes = ProbeRenderer(ctx, centre, radius, roughness, cameras, size)
+        self.covered = None
+
+    def render(self, radiance: np.ndarray) -> dict:
+        """:meth:`ProbeRenderer.render` of the cubemap of the points with ``radiance``."""
+        from probeless.hdr.splat import cloud_cubemap
+
+        faces, self.covered = cloud_cubemap(self.splat, self.points, radiance, self.spacing, self.centre, self.face)
+        return self.probes.render(faces)
+
+    def scene_info(self) -> dict:
+        """``cubemap_hole_fraction``: the solid-angle fraction of the cubemap no point covers."""
+        from probeless.geom.cube import cube_solid_angles
+
+        omega = cube_solid_angles(self.face)
+        return {"cubemap_hole_fraction": float(omega[~self.covered].sum() / omega.sum())}
+
+    def release(self) -> None:
+        """Free both renderers' GL resources (not the shared context)."""
+        self.probes.release()
+        self.splat.release()
+
+
+def make_probes(ctx, case, radius: float, cameras, ns):
+    """The spheres of ``--renderer``: :class:`CubemapProbes` or :class:`probeless.eval.hdr_pbgi.PbgiProbes`."""
+    args = (ctx, case.points, case.object_position, radius, ns.roughness, cameras, ns.image)
+    if ns.renderer == "pbgi":
+        from probeless.eval.hdr_pbgi import PbgiProbes
+
+        return PbgiProbes(*args, variant=ns.variant, micro=ns.micro, tc=ns.tc)
+    return CubemapProbes(*args, ns.face)
+
+
 def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = None) -> dict:
     """The scene's result; ``images`` (when given) receives {"truth" | method: renderings} for ``--pictures``."""
-    from probeless.geom.cube import cube_solid_angles
     from probeless.gl.context import create_context
     from probeless.hdr.expand import expand_cloud
-    from probeless.hdr.splat import SplatRenderer, cloud_cubemap, point_spacing
     from probeless.hdr.synthetic import synthetic_case
     from probeless.hdr.transfer import overexposed
-    from probeless.ibl.probes import ProbeRenderer
     from probeless.scene.parse import load_scene
 
     scene = load_scene(scene_path)
@@ -172,14 +233,12 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
     cameras = viewpoints(case.object_position, radius, towards, ns.image)
     truth = case.truth_cloud_units.astype(np.float64)
     over = overexposed(case.ldr_colors)
-    spacing = point_spacing(case.points)
     ctx = create_context()
-    splat = objects = None
+    probes = None
     try:
-        splat = SplatRenderer(ctx)
-        objects = ProbeRenderer(ctx, case.object_position, radius, ns.roughness, cameras, ns.image)
-        true_faces, covered = cloud_cubemap(splat, case.points, truth, spacing, case.object_position, ns.face)
-        ref = objects.render(true_faces)
+        probes = make_probes(ctx, case, radius, cameras, ns)
+        ref = probes.render(truth)
+        info = probes.scene_info()
         if images is not None:
             images["truth"] = ref
         tick()
@@ -191,8 +250,7 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
                 res = expand_cloud(case.points, case.ldr_colors, case.photo_hdr, method=m, views=ns.views,
                                    size=ns.size, robust=not getattr(ns, "no_robust", False))
                 radiance, report = res.radiance, res.report
-            faces, _ = cloud_cubemap(splat, case.points, radiance, spacing, case.object_position, ns.face)
-            est = objects.render(faces)
+            est = probes.render(radiance)
             if images is not None:
                 images[m] = est
             rows[m] = {"cloud_rms": rms(radiance, truth), "cloud_rms_overexposed": rms(radiance[over], truth[over]),
@@ -201,15 +259,13 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
                        "points_filled": report.get("points_filled"), "points_rejected": report.get("points_rejected")}
             tick()
     finally:
-        for r in (objects, splat):
-            if r is not None:
-                r.release()
+        if probes is not None:
+            probes.release()
         ctx.release()
-    omega = cube_solid_angles(ns.face)
     return {"scene": case.scene, "points": int(len(case.points)), "points_overexposed": int(over.sum()),
             "true_radiance_max": float(case.true_radiance.max()), "exposure": case.exposure,
             "photo_exposure": case.photo_exposure, "object_position": case.object_position.tolist(),
-            "object_radius": radius, "cubemap_hole_fraction": float(omega[~covered].sum() / omega.sum()),
+            "object_radius": radius, **info,
             "viewpoints": [{"position": pose[:3, 3].tolist(), "fov_deg": float(np.degrees(2 * np.arctan(
                 ns.image / 2 / K[0, 0])))} for K, pose in cameras],
             "methods": rows}
@@ -221,11 +277,12 @@ COLUMNS = ("cloud_rms", "cloud_rms_overexposed", "diffuse_rms", "diffuse_ssim", 
 
 
 def format_table(result: dict) -> str:
-    lines = [f"renderings: diffuse sphere (albedo 1) and GGX sphere (roughness {result['roughness']}), "
-             f"two viewpoints each (mean shown); RMS in cloud units"]
+    lines = [f"renderings ({result.get('renderer', 'cubemap')}): diffuse sphere (albedo 1) and GGX sphere "
+             f"(roughness {result['roughness']}), two viewpoints each (mean shown); RMS in cloud units"]
     for s in result["scenes"]:
+        holes = f", cubemap holes {100 * s['cubemap_hole_fraction']:.1f}%" if "cubemap_hole_fraction" in s else ""
         lines.append(f"{s['scene']}: {s['points']} points, {s['points_overexposed']} over-exposed, "
-                     f"true max {s['true_radiance_max']:.3g}, cubemap holes {100 * s['cubemap_hole_fraction']:.1f}%")
+                     f"true max {s['true_radiance_max']:.3g}{holes}")
         lines.append(f"  {'method':<12}" + "".join(f"{c:>23}" for c in COLUMNS))
         for m, row in s["methods"].items():
             cells = "".join(f"{'-' if row[c] is None else format(row[c], '.4g'):>23}" for c in COLUMNS)
@@ -265,7 +322,7 @@ def tone_map(img: np.ndarray, white: float) -> np.ndarray:
     return np.clip(linear_to_srgb(np.clip(img / max(white, 1e-6), 0.0, 1.0)), 0.0, 1.0)
 
 
-def pictures(scene: dict, images: dict, path: Path) -> None:
+def pictures(scene: dict, images: dict, path: Path, renderer: str = "cubemap") -> None:
     """One PNG: rows truth and each method; columns GGX and diffuse from each viewpoint (tone-mapped, white =
     the 99th percentile of the truth's sphere pixels in that column)."""
     import matplotlib
@@ -293,7 +350,8 @@ def pictures(scene: dict, images: dict, path: Path) -> None:
                 ax.set_xlabel(f"rms {v[f'{kind}_rms']:.3g} ssim {v[f'{kind}_ssim']:.3f}", fontsize=7)
             if c == 0:
                 ax.set_ylabel(name, fontsize=9)
-    fig.suptitle(f"{scene['scene']}: spheres lit by each cloud's cubemap (white = truth's 99th pct)", fontsize=10)
+    light = "PBGI from each cloud" if renderer == "pbgi" else "each cloud's cubemap"
+    fig.suptitle(f"{scene['scene']}: spheres lit by {light} (white = truth's 99th pct)", fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 0.98))
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -322,12 +380,14 @@ def run(ns: argparse.Namespace) -> int:
             scene = evaluate_scene(path, methods, ns, tick, images)
             if out_dir is not None:
                 scene["pictures"] = str(out_dir / f"{scene['scene']}.png")
-                pictures(scene, images, Path(scene["pictures"]))
+                pictures(scene, images, Path(scene["pictures"]), ns.renderer)
                 print(f"wrote {scene['pictures']}", file=sys.stderr)
             scenes.append(scene)
     result = {"methods": methods, "views": ns.views, "size": ns.size, "photo_target": ns.photo_target,
-              "robust": not ns.no_robust,
-              "face": ns.face, "image": ns.image, "roughness": ns.roughness, "units": UNITS, "scenes": scenes}
+              "robust": not ns.no_robust, "renderer": ns.renderer,
+              **({"pbgi": {"variant": ns.variant, "micro": ns.micro, "tc": ns.tc}} if ns.renderer == "pbgi"
+                 else {"face": ns.face}),
+              "image": ns.image, "roughness": ns.roughness, "units": UNITS, "scenes": scenes}
     if ns.figure:
         figure(result, ns.figure)
         result["figure"] = ns.figure

@@ -20,10 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import wasserstein_distance
 
+from probeless.color import REC709_Y, luminance  # noqa: F401 (luminance: re-exported)
 from probeless.errors import HdrError
-
-REC709_Y = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
-"""CIE Y of linear Rec.709 / sRGB primaries."""
 
 BINS = 128
 """Histogram bins of the paper (§4.1)."""
@@ -45,14 +43,6 @@ def _rgb(a, what: str, *, image: bool = False) -> np.ndarray:
     if (a < 0).any():
         raise HdrError(f"{what}: has {int((a < 0).sum())} negative values (min {float(a.min()):g})")
     return a
-
-
-def luminance(rgb: np.ndarray) -> np.ndarray:
-    """CIE Y of linear Rec.709 RGB: (..., 3) -> (...,) float32, ``0.2126 R + 0.7152 G + 0.0722 B``."""
-    a = np.asarray(rgb, dtype=np.float32)
-    if a.ndim < 1 or a.shape[-1] != 3:
-        raise HdrError(f"luminance: expected an (..., 3) RGB array, got shape {a.shape}")
-    return a @ REC709_Y
 
 
 def bin_centres(bins: int = BINS) -> np.ndarray:

@@ -49,10 +49,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from probeless.color import REC709_Y
 from probeless.errors import HdrError
 from probeless.hdr import patchmatch_kernels as _k
 
-_REC709 = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
 _BAND = 64
 _GRID = 1024  # angles and scales searched on a grid of this many values over their range
 # per pixel and iteration, samples uniform over the whole target before the local random search: cheap thanks to
@@ -141,7 +141,7 @@ def _range(value, name: str, fn: str, *, positive: bool) -> tuple[float, float] 
 
 def _matchable(img: np.ndarray, mode: str) -> np.ndarray:
     if mode == "lum":
-        return np.ascontiguousarray((img @ _REC709)[..., None], dtype=np.float32)
+        return np.ascontiguousarray((img @ REC709_Y)[..., None], dtype=np.float32)
     return img
 
 

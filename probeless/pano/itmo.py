@@ -18,9 +18,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from probeless.color import REC709_Y
 from probeless.errors import ProbelessError
 
-_REC709 = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
 _PAPER = np.array([0.3, 0.59, 0.11], dtype=np.float32)
 
 
@@ -58,7 +58,7 @@ def landis_itmo(ldr: np.ndarray, max_lum: float = 10.0, threshold: float = 0.5,
     if not 0.0 <= threshold < 1.0:
         raise ProbelessError(f"landis_itmo: threshold must be in [0, 1), got {threshold}")
     a = _as_ldr(ldr, "landis_itmo")
-    ld = a @ _REC709
+    ld = a @ REC709_Y
     k = (np.clip(ld - threshold, 0.0, None) / np.float32(1.0 - threshold)) ** np.float32(alpha)
     lw = (1.0 - k) * ld + k * np.float32(max_lum) * ld
     return _scale_by_luminance(a, ld, lw.astype(np.float32))
@@ -67,7 +67,7 @@ def landis_itmo(ldr: np.ndarray, max_lum: float = 10.0, threshold: float = 0.5,
 def akyuz_itmo(ldr: np.ndarray, max_lum: float = 10.0, gamma: float = 1.0) -> np.ndarray:
     """Akyuz: ``Lw = max_lum ((Ld - min) / (max - min))^gamma`` over the frame's luminance range."""
     a = _as_ldr(ldr, "akyuz_itmo")
-    ld = a @ _REC709
+    ld = a @ REC709_Y
     lo, hi = float(ld.min(initial=0.0)), float(ld.max(initial=0.0))
     if hi <= lo:  # a flat frame has no range to stretch: map it to max_lum * Ld
         norm = ld
@@ -97,7 +97,7 @@ def banterle_expand_map(ldr: np.ndarray, max_lum: float = 10.0, l_white: float =
     a = _as_ldr(ldr, "banterle_expand_map")
     if a.ndim != 3:
         raise ProbelessError(f"banterle_expand_map: expected an (H, W, 3) image, got shape {a.shape}")
-    ld = a @ _REC709
+    ld = a @ REC709_Y
     mask = (ld > threshold).astype(np.float32)
     sigma = max(float(sigma_frac) * a.shape[1], 1e-3)
     e = cv2.GaussianBlur(mask, (0, 0), sigmaX=sigma, borderType=cv2.BORDER_REFLECT)

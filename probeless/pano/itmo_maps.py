@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probeless.color import from_srgb8
+from probeless.color import REC709_Y, from_srgb8
 from probeless.errors import DatasetError
 from probeless.pano import glossy
 from probeless.pano.diffuse import diffuse_map
@@ -39,7 +39,6 @@ EXPOSURE_PERCENTILE, EXPOSURE_TARGET = 0.9, 0.5
 VIEWS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, -1.0, 0.0))
 DIFFUSE_SIZE = (32, 16)
 ROUGHNESS = 0.1
-_REC709 = np.array([0.2126, 0.7152, 0.0722])
 
 
 def weighted_percentile(values: np.ndarray, q: float) -> float:
@@ -53,7 +52,7 @@ def weighted_percentile(values: np.ndarray, q: float) -> float:
 def camera_exposure(hdr: np.ndarray, percentile: float = EXPOSURE_PERCENTILE,
                     target: float = EXPOSURE_TARGET) -> float:
     """Exposure ``k`` mapping the weighted ``percentile`` of the luminance of ``hdr`` to ``target``."""
-    lum = check_equirect(hdr, "camera_exposure").astype(np.float64) @ _REC709
+    lum = check_equirect(hdr, "camera_exposure").astype(np.float64) @ REC709_Y
     ref = weighted_percentile(lum, percentile)
     if not ref > 0:
         raise DatasetError(f"camera_exposure: the {percentile:.0%} luminance percentile is {ref}, not positive")

@@ -90,7 +90,8 @@ def cmd_render(ns: argparse.Namespace) -> int:
             normals = estimate_normals(points, centroid)
         t = _stage(timings, "read", t)
         tick()
-        relighter = Relighter(objects, mode=ns.mode, near_radius=ns.near_radius, variant=ns.variant, micro=ns.micro)
+        relighter = Relighter(objects, mode=ns.mode, near_radius=ns.near_radius, variant=ns.variant, micro=ns.micro,
+                              supersample=ns.supersample)
         try:
             report = relighter.set_cloud(points, radiance, normals)
             t = _stage(timings, "bsh", t)
@@ -154,6 +155,8 @@ def add_pbgi_parser(sub) -> None:
     c.add_argument("--size", type=int, default=256, help="image width = height [px] (default 256)")
     c.add_argument("--variant", choices=("classic", "mipmapped", "hybrid"), default="hybrid")
     c.add_argument("--micro", type=int, choices=(16, 24, 32), default=24, help="micro-buffer side (default 24)")
+    c.add_argument("--supersample", type=int, choices=(1, 2, 3, 4), default=2,  # probeless.pbgi.render.SUPERSAMPLE
+                   help="micro-buffer raster texels per texel side; 1: the paper's (default 2)")
     c.add_argument("--mode", choices=MODES, default="full", help="full | near_field | envmap (default full)")
     c.add_argument("--near-radius", type=float, default=1.0, help="near_field radius [m] (default 1)")
     c.add_argument("--exposure", type=float, help="cloud units -> image (default: auto, p99 of the object -> 0.9)")

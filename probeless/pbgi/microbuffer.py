@@ -39,6 +39,8 @@ MAT_DTYPE = np.dtype([("base", "<f4", (3,)), ("roughness", "<f4"), ("metalness",
                       ("pad", "<f4", (2,))])
 MAX_BUFFER = 128 << 20  # llvmpipe's GL_MAX_SHADER_STORAGE_BLOCK_SIZE [bytes]
 _GROUP = 64
+DEPTH_MIN = 0.01  # nearest depth the texel keys resolve [m]; nearer points share the first step
+VOR_BITS = 3  # nearness-rank bits of a texel key (pbgi_common.glsl)
 WORK_CAP = 8192  # work units per classic invocation and dispatch (pbgi_classic.comp.glsl)
 
 
@@ -80,12 +82,16 @@ class MicroBufferRenderer:
     """
 
     def __init__(self, ctx: moderngl.Context, *, micro: int = 24, hybrid_factor: float = 32.0,
-                 is_roughness: float = 0.2, is_samples: int = 64, budget: int = 64 << 20):
+                 is_roughness: float = 0.2, is_samples: int = 64, budget: int = 64 << 20, supersample: int = 1):
         if not 4 <= int(micro) <= 64:
             raise PbgiError(f"micro-buffer side must be in [4, 64], got {micro}")
-        if budget > MAX_BUFFER or budget < micro * micro * 4:
-            raise PbgiError(f"micro-buffer budget must be in [{micro * micro * 4}, {MAX_BUFFER}] bytes, got {budget}")
+        side = int(micro) * int(supersample)
+        if budget > MAX_BUFFER or budget < side * side * 4:
+            raise PbgiError(f"micro-buffer budget must be in [{side * side * 4}, {MAX_BUFFER}] bytes, got {budget}")
+        if not 1 <= int(supersample) <= 4:
+            raise PbgiError(f"supersample must be 1..4, got {supersample}")
         self.ctx, self.micro, self.budget = ctx, int(micro), int(budget)
+        self.side = self.micro * int(supersample)  # texels per micro-buffer row
         self.hybrid_factor, self.is_roughness, self.is_samples = float(hybrid_factor), float(is_roughness), int(
             is_samples)
         self.progs = {k: load_program(ctx, f"pbgi_{k}", shader_dir=SHADERS) for k in ("classic", "pairs", "shade")}
@@ -101,7 +107,7 @@ class MicroBufferRenderer:
     @property
     def tile_levels(self) -> int:
         """Mip levels above the pixels: the largest whose tiles' micro-buffers fit one batch."""
-        per = self.micro * self.micro * 4
+        per = self.side * self.side * 4
         return max(0, int(math.floor(math.log2(self.budget // per) / 2)))
 
     def set_nodes(self, nodes: np.ndarray) -> None:
@@ -109,8 +115,9 @@ class MicroBufferRenderer:
         nodes = np.asarray(nodes)
         if nodes.dtype != NODE_DTYPE or nodes.ndim != 1 or nodes.size == 0:
             raise PbgiError(f"set_nodes: expected a non-empty 1-D NODE_DTYPE array, got {nodes.dtype} {nodes.shape}")
-        if nodes.nbytes > MAX_BUFFER or nodes.size >= 1 << 22:
-            raise PbgiError(f"set_nodes: {nodes.size} nodes exceed the GPU limit of {min(MAX_BUFFER // 40, 1 << 22)}")
+        if nodes.nbytes > MAX_BUFFER or nodes.size >= 1 << 21:
+            raise PbgiError(f"set_nodes: {nodes.size} nodes exceed the limit of {(1 << 21) - 1} (texel keys hold "
+                            f"a 21-bit slot, 8 depth and {VOR_BITS} rank bits; prune or use a larger voxel)")
         if self.nodes_buf is not None:
             self.nodes_buf.release()
         self.nodes_buf = self.ctx.buffer(nodes.tobytes())
@@ -127,7 +134,7 @@ class MicroBufferRenderer:
 
     def _batches(self, pyr) -> list[tuple[int, int, int, int]]:
         """[(top start, top end, level-0 start, level-0 end)] of whole top-level tiles within the budget."""
-        cap = self.budget // (self.micro * self.micro * 4)
+        cap = self.budget // (self.side * self.side * 4)
         lo, top = pyr.offsets[-2], pyr.offsets[-1]
         out, a, s0, acc = [], lo, 0, 0
         for t in range(lo, top):
@@ -161,7 +168,7 @@ class MicroBufferRenderer:
         stats = MicroStats(variant, self.micro, n0, len(batches))
         self._bind_common(pyr, materials, camera_position, far_field, near)
         for top0, top1, s0, s1 in batches:
-            self._buffer("micro", (s1 - s0) * self.micro ** 2 * 4).clear(chunk=b"\xff\xff\xff\xff")
+            self._buffer("micro", (s1 - s0) * self.side ** 2 * 4).clear(chunk=b"\xff\xff\xff\xff")
             self._set_all(slot_base=s0)
             if variant == "classic":
                 self._classic(None, s1 - s0, s0, stats)
@@ -194,8 +201,11 @@ class MicroBufferRenderer:
         pts = pyr.records["position"]
         extent = np.linalg.norm(np.maximum(hi, pts.max(0)) - np.minimum(lo, pts.min(0)))
         idx_bits = self.idx_bits = max(1, math.ceil(math.log2(self.n_nodes + 1)))
-        self._set_all(M=self.micro, omega_stop=4.0 * self.omega, idx_bits=idx_bits, log_dmin=math.log(1e-4),
-                      log_drange=math.log(max(2.0 * extent, 1e-3)) - math.log(1e-4),
+        if 32 - idx_bits - VOR_BITS < 8:
+            raise PbgiError(f"{self.n_nodes} nodes leave {32 - idx_bits - VOR_BITS} depth bits in a texel key "
+                            f"(at least 8 needed; prune the cloud or use a larger voxel)")
+        self._set_all(M=self.side, omega_stop=4.0 * self.omega, idx_bits=idx_bits, log_dmin=math.log(DEPTH_MIN),
+                      log_drange=math.log(max(2.0 * extent, 1e-3)) - math.log(DEPTH_MIN),
                       near_center=tuple(float(v) for v in (near[0] if near else (0, 0, 0))),
                       near_radius=float(near[1]) if near else -1.0)
         ang = np.arange(256) * math.pi / 255
@@ -209,7 +219,7 @@ class MicroBufferRenderer:
             far_field.use(0)
         set_uniforms(self.progs["shade"], far_field=0, has_far=far_field is not None,
                      camera_position=tuple(float(v) for v in camera_position), is_roughness=self.is_roughness,
-                     is_samples=self.is_samples, texel_area=math.pi / disk_texels(self.micro))
+                     is_samples=self.is_samples, texel_area=math.pi / disk_texels(self.side))
 
     def _run(self, prog, n: int, **uniforms) -> None:
         self._bufs["micro"].bind_to_storage_buffer(2)
@@ -291,7 +301,7 @@ class MicroBufferRenderer:
 
     def last_micro_buffers(self) -> np.ndarray:
         """(pixels, M, M) uint32 micro-buffers of the last batch rendered (texel codes, see pbgi_common.glsl)."""
-        m = self.micro
+        m = self.side
         return np.frombuffer(self._bufs["micro"].read(), np.uint32).reshape(-1, m, m).copy()
 
     def release(self) -> None:

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from probeless.color import REC709_Y
 from probeless.errors import PbgiError
 from probeless.paths import REPO_ROOT
 from probeless.pbgi.room import Patch, ReferenceRoom
@@ -89,7 +90,7 @@ def _patch_shape(mi, patch: Patch) -> dict:
     m[:3, 3] = patch.origin + (patch.edge_u + patch.edge_v) / 2
     texture = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(patch.radiance, np.float32)),
                "raw": True, "filter_type": "bilinear", "wrap_mode": "clamp"}
-    luminance = float(np.mean(patch.radiance @ np.array([0.2126, 0.7152, 0.0722], np.float32)))
+    luminance = float(np.mean(patch.radiance @ REC709_Y))
     return {"type": "rectangle", "to_world": mi.ScalarTransform4f(m.tolist()),
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}},
             # emitters are picked in proportion to their power: the small bright lamp gets its share

@@ -212,7 +212,8 @@ def sample_cloud(room: ReferenceRoom, spacing: float = 0.01, seed: int = 0, jitt
     return np.concatenate(pts), np.concatenate(cols), np.concatenate(nrm).copy()
 
 
-VIEWS = {"front": (30.0, 10.0), "side": (90.0, 10.0)}  # (azimuth from -y towards -x, elevation) [deg]
+VIEWS = {"front": (30.0, 10.0), "side": (90.0, 10.0), "wall": (-30.0, 10.0)}  # (azimuth from -y towards -x,
+# elevation) [deg]
 
 
 def object_camera(room: ReferenceRoom, size, view: str = "front", *, distance: float = 1.2, margin: float = 1.25):
@@ -222,7 +223,8 @@ def object_camera(room: ReferenceRoom, size, view: str = "front", *, distance: f
     ((W - 1) / 2, (H - 1) / 2), pixel centres at integer coordinates. The sphere's silhouette spans
     ``1 / margin`` of the image's smaller side. ``"front"`` looks from 30 deg left of -y so that the
     red panel (``"red_wall"``) shows right of the sphere and lights its visible right side; ``"side"``
-    looks along +x (the panel, if any, is behind the sphere). ``distance`` [m] is from the centre.
+    looks along +x (the panel, if any, is behind the sphere); ``"wall"`` looks from 30 deg right of -y, past
+    the panel's edge, at the side of the sphere the panel lights. ``distance`` [m] is from the centre.
     """
     if view not in VIEWS:
         raise PbgiError(f"unknown object view {view!r}; expected one of {', '.join(VIEWS)}")

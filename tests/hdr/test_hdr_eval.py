@@ -5,7 +5,8 @@ pieces are checked against independent references: a constant environment (analy
 linearity of the rendering in the cloud's
 colours (k x truth has RMS |k - 1| x the truth's RMS), clipping (LDR lights the GGX sphere less, pixel by
 pixel). On light_switch with the test's small settings (SMALL) ``pmatch-rgb`` beats ``ldr`` on the
-over-exposed cloud RMS and on both renderings.
+over-exposed cloud RMS and on both renderings, with the cubemap and with the PBGI renderer (``--renderer pbgi``,
+whose spheres cover the cubemap path's pixels and, with one tree for every cloud, are linear in the radiance).
 """
 
 from __future__ import annotations
@@ -123,6 +124,16 @@ def test_viewpoints_look_at_the_object_from_4_radii_towards_each_target():
         assert span == pytest.approx(VIEW_FILL * 128, rel=1e-6)
 
 
+LIT_TOWARDS = ((1.0, 3.2, 1.4), (3.5, 3.2, 1.4))  # the viewpoints' targets of ``lit``
+
+
+def viewpoints_of_lit(case):
+    """The cameras of the ``lit`` renderings."""
+    from probeless.eval.hdr_expand import viewpoints
+
+    return viewpoints(case.object_position, 0.12, LIT_TOWARDS, 64)
+
+
 @pytest.fixture(scope="module")
 def lit(case, ctx):
     """Renderings (face 32, 64 px) of the spheres at the case's object lit by the true cloud, 1.1 x the true
@@ -131,7 +142,7 @@ def lit(case, ctx):
 
     truth = case.truth_cloud_units
     splat = SplatRenderer(ctx)
-    objects, _ = make_objects(ctx, case.object_position, 0.12, towards=((1.0, 3.2, 1.4), (3.5, 3.2, 1.4)))
+    objects, _ = make_objects(ctx, case.object_position, 0.12, towards=LIT_TOWARDS)
     spacing = point_spacing(case.points)
     try:
         out, covered = {}, {}
@@ -201,6 +212,7 @@ def test_eval_ldr_json_pictures_and_figure(case, tmp_path, capsys):
     res = json.loads(capsys.readouterr().out)
     (scene,) = res["scenes"]
     assert res["roughness"] == 0.3 and res["image"] == 64 and res["face"] == 32 and set(res["units"]) >= {"ggx_rms"}
+    assert res["renderer"] == "cubemap" and "pbgi" not in res and 0 < scene["cubemap_hole_fraction"] < 1
     row = scene["methods"]["ldr"]
     truth = case.truth_cloud_units.astype(np.float64)
     assert row["cloud_rms"] == pytest.approx(np.sqrt(np.mean((case.ldr_colors - truth) ** 2)), abs=1e-6)
@@ -232,6 +244,57 @@ def test_eval_json_has_every_method_and_pmatch_beats_ldr_on_overexposed(capsys):
         assert len(row["views"]) == 2
     rows = scene["methods"]
     assert rows["pmatch-rgb"]["cloud_rms_overexposed"] < rows["ldr"]["cloud_rms_overexposed"]
+    assert rows["pmatch-rgb"]["diffuse_rms"] < rows["ldr"]["diffuse_rms"]
+    assert rows["pmatch-rgb"]["ggx_rms"] < rows["ldr"]["ggx_rms"]
+
+
+@pytest.mark.gl
+def test_pbgi_spheres_cover_the_cubemap_spheres_pixels_and_are_linear_in_the_radiance(case, ctx, lit):
+    """PbgiProbes draws the spheres of ProbeRenderer (same mesh, cameras, size: the same pixels), lit by the
+    points themselves. With the default tc = 0 every cloud gets the same tree, so the rendering is linear in the
+    radiance: 1.1 x the truth gives RMS 0.1 x the truth's RMS (and the truth against itself 0)."""
+    from probeless.eval.hdr_expand import compare_renderings
+    from probeless.eval.hdr_pbgi import VARIANTS, PbgiProbes
+    from probeless.pbgi.microbuffer import VARIANTS as ALL_VARIANTS
+
+    assert set(VARIANTS) == set(ALL_VARIANTS) - {"envmap"}
+    cams = viewpoints_of_lit(case)
+    probes = PbgiProbes(ctx, case.points, case.object_position, 0.12, 0.3, cams, 64)
+    try:
+        assert probes.normals.shape == case.points.shape and probes.scene_info() == {}
+        a = probes.render(case.truth_cloud_units)
+        scaled = compare_renderings(probes.render(1.1 * case.truth_cloud_units), a)
+    finally:
+        probes.release()
+    assert scaled["ggx_ssim"] < 1
+    for kind in ("diffuse", "ggx"):
+        for i, ((img, mask), (_, cube_mask)) in enumerate(zip(a[kind], lit["truth"][kind])):
+            np.testing.assert_array_equal(mask, cube_mask)
+            assert np.all(img[~mask] == 0) and np.isfinite(img).all() and img[mask].max() > 0.1
+            expected = 0.1 * np.sqrt(np.mean(img[mask] ** 2))
+            assert scaled["views"][i][f"{kind}_rms"] == pytest.approx(expected, rel=1e-4)
+
+
+@pytest.mark.gl
+def test_eval_pbgi_renderer_json_and_pmatch_beats_ldr(capsys):
+    """``--renderer pbgi``: the same metrics per viewpoint, the settings recorded; pmatch-rgb beats ldr on both
+    renderings there too (as with the cubemap: test_eval_json_has_every_method_and_pmatch_beats_ldr_on_overexposed)."""
+    args = ["eval", "hdr-expand", str(SCENE), *SMALL, "--methods", "ldr", "pmatch-rgb", "--renderer", "pbgi",
+            "--variant", "hybrid", "--micro", "16", "--json", "--no-progress"]
+    assert main(args) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["renderer"] == "pbgi" and res["pbgi"] == {"variant": "hybrid", "micro": 16, "tc": 0.0}
+    assert "face" not in res
+    (scene,) = res["scenes"]
+    assert "cubemap_hole_fraction" not in scene
+    rows = scene["methods"]
+    for row in rows.values():
+        for key in KEYS:
+            assert np.isfinite(row[key]), key
+        assert len(row["views"]) == 2
+        for key in KEYS[2:]:
+            assert row[key] == pytest.approx(np.mean([v[key] for v in row["views"]]), abs=2e-6)
+    assert rows["ldr"]["ggx_rms"] > 0.05 and rows["ldr"]["ggx_ssim"] < 1
     assert rows["pmatch-rgb"]["diffuse_rms"] < rows["ldr"]["diffuse_rms"]
     assert rows["pmatch-rgb"]["ggx_rms"] < rows["ldr"]["ggx_rms"]
 

@@ -133,16 +133,24 @@ def reference_micro_buffer(nodes, p, n, micro: int, idx_bits: int, log_dmin: flo
         if sb < 1:
             loc = frame.T @ w
             code = _code(d, i, idx_bits, log_dmin, log_drange)
-            hit = inside & (qx * loc[0] + qy * loc[1] + qz * loc[2] >= math.sqrt(1 - sb * sb))
-            codes = np.full(hit.shape, code, np.uint64)
+            cos_b = math.sqrt(1 - sb * sb)
+            ct = qx * loc[0] + qy * loc[1] + qz * loc[2]
+            hit = inside & (ct >= cos_b)
+            codes = np.zeros(hit.shape, np.uint64)
             if (int(nodes["cone"][i]) >> 24) <= 64:  # a near-flat node: its disk, depth along the ray
                 ax = frame.T @ axis[i]
                 den = qx * ax[0] + qy * ax[1] + qz * ax[2]
                 dist = np.where(np.abs(den) > 1e-6, (frame.T @ v) @ ax / np.where(den == 0, 1, den), -1.0)
                 xs = np.stack([qx, qy, qz], -1) * dist[..., None] - frame.T @ v
-                hit &= (dist > 0) & ((xs ** 2).sum(-1) <= r[i] ** 2)
+                rr = (xs ** 2).sum(-1)
+                hit &= (dist > 0) & (rr <= r[i] ** 2)
                 for yy, xx in zip(*np.nonzero(hit)):
-                    codes[yy, xx] = _code(dist[yy, xx], i, idx_bits, log_dmin, log_drange)
+                    codes[yy, xx] = _code(dist[yy, xx], i, idx_bits, log_dmin, log_drange,
+                                          math.sqrt(rr[yy, xx]) / max(r[i], 1e-12))
+            else:
+                for yy, xx in zip(*np.nonzero(hit)):
+                    codes[yy, xx] = _code(d, i, idx_bits, log_dmin, log_drange,
+                                          (1 - ct[yy, xx]) / max(1 - cos_b, 1e-12))
             if hit.any():
                 out[hit] = np.minimum(out[hit], codes[hit])
             elif loc[2] > 0:
@@ -153,9 +161,11 @@ def reference_micro_buffer(nodes, p, n, micro: int, idx_bits: int, log_dmin: flo
     return out
 
 
-def _code(d, i, idx_bits, log_dmin, log_drange) -> int:
+def _code(d, i, idx_bits, log_dmin, log_drange, rank=0.0) -> int:
+    """pbgi_common.glsl's texel key: log depth, then the nearness rank (3 bits), then the node slot."""
     u = min(max((math.log(d) - log_dmin) / log_drange, 0.0), 1.0)
-    return (int(u * ((1 << (32 - idx_bits)) - 1)) << idx_bits) | int(i)
+    r = min(int(rank * 8), 7)
+    return (int(u * ((1 << (32 - idx_bits - 3)) - 1)) << (idx_bits + 3)) | (r << idx_bits) | int(i)
 
 
 def _unpack(cone):
@@ -168,7 +178,7 @@ def test_three_variants_fill_the_micro_buffers_of_the_numpy_reference(room_bsh, 
     """64 x 64 needs the resumable classic walk (llvmpipe's 65535-iteration loop guard): without it the walks stop
     early and this fails."""
     obj = sphere_object(Brdf("lambert", (1, 1, 1)))
-    r = PbgiRenderer([obj], micro=micro, budget=32 << 20)
+    r = PbgiRenderer([obj], micro=micro, budget=32 << 20, supersample=1)
     try:
         r.set_cloud(room_bsh)
         K, pose = camera(CENTRE, size)
@@ -186,7 +196,7 @@ def test_three_variants_fill_the_micro_buffers_of_the_numpy_reference(room_bsh, 
         lo, hi = m.bounds
         pts = pyr.records["position"]
         extent = np.linalg.norm(np.maximum(hi, pts.max(0)) - np.minimum(lo, pts.min(0)))
-        log_dmin, log_drange = math.log(1e-4), math.log(2 * extent) - math.log(1e-4)
+        log_dmin, log_drange = math.log(0.01), math.log(2 * extent) - math.log(0.01)
         rng = np.random.default_rng(micro)
         agree = []
         for j in rng.choice(pyr.n_pixels, 4, replace=False):
@@ -316,3 +326,18 @@ def test_errors_name_what_is_wrong(furnace_bsh):
     with pytest.raises(PbgiError, match="micro-buffer side"):
         MicroBufferRenderer(None, micro=2)
     assert disk_texels(2) == 4 and disk_texels(16) < 256
+
+
+def test_command_line_defaults_follow_the_renderer():
+    import argparse
+
+    from probeless.eval import pbgi as ev
+    from probeless.pbgi import render
+    from probeless.pbgi.cli import add_pbgi_parser
+
+    top = argparse.ArgumentParser()
+    add_pbgi_parser(top.add_subparsers())
+    assert top.parse_args(["pbgi", "render", "cloud.ply", "-o", "x.png"]).supersample == render.SUPERSAMPLE
+    p = argparse.ArgumentParser()
+    ev.add_arguments(p)
+    assert p.parse_args([]).supersample == render.SUPERSAMPLE

@@ -3,13 +3,17 @@
 //
 // Micro-buffer: M x M uints per receiver (level-0 G-buffer pixel), the hemisphere around its normal in the
 // orthographic (Nusselt) projection: texel (x, y) looks along frame * (q.x, q.y, sqrt(1 - |q|^2)),
-// q = ((x, y) + 0.5) / M * 2 - 1; texels with |q| >= 1 are unused. A texel holds
-// (quantised log depth << idx_bits) | node slot, so atomicMin keeps the nearest node (the depth test);
+// q = ((x, y) + 0.5) / M * 2 - 1; texels with |q| >= 1 are unused. A texel holds the key
+// (quantised log depth << (VOR_BITS + idx_bits)) | (nearness rank << idx_bits) | node slot, so atomicMin keeps the
+// nearest surface (the depth test) and, among nodes of one surface (equal depth: neighbours on a wall, whose bounding
+// disks overlap), the node whose centre is nearest the texel's ray: a Voronoi split of the overlaps instead of the
+// lower slot number winning, which let the disks of bright patches (a lamp) spill over their dark neighbours.
 // MB_EMPTY = nothing landed there.
 
 #define PBGI_PI 3.14159265358979
 #define NO_CHILD 0xFFFFFFFFu
 #define MB_EMPTY 0xFFFFFFFFu
+#define VOR_BITS 3u
 
 struct Node { float cx, cy, cz, r, red, green, blue; uint cone, skip, right; };  // 40 bytes (bsh.NODE_DTYPE)
 struct GPixel {  // a G-buffer pixel of some mip level (48 bytes, microbuffer.GPIXEL_DTYPE)
@@ -85,9 +89,13 @@ mat3 mb_frame(vec3 n) {
     return mat3(t, cross(n, t), n);
 }
 
-uint depth_code(float d) {
+// The key's high bits: log depth d [m] and the nearness rank t in [0, 1] (0: the texel's ray meets the node's centre,
+// 1: its rim), above the node slot's idx_bits.
+uint texel_key(float d, float t, uint i) {
     float u = clamp((log(max(d, 1e-9)) - log_dmin) / log_drange, 0.0, 1.0);
-    return uint(u * float((1u << (32u - idx_bits)) - 1u)) << idx_bits;
+    uint rank = min(uint(t * float(1u << VOR_BITS)), (1u << VOR_BITS) - 1u);
+    uint depth = uint(u * float((1u << (32u - idx_bits - VOR_BITS)) - 1u));
+    return (depth << (idx_bits + VOR_BITS)) | (rank << idx_bits) | i;
 }
 
 // Rasterise node slot i into the micro-buffer of `slot` at receiver p with frame f. A node whose normal cone is
@@ -115,7 +123,7 @@ uint splat(uint slot, vec3 p, mat3 f, uint i) {
     vec3 axis = transpose(f) * cone_axis(a.cone);  // in the micro-buffer frame
     vec3 lc = transpose(f) * v;                     // centre relative to p, micro-buffer frame
     float plane = dot(lc, axis);
-    uint code = depth_code(d) | i;
+    uint code = texel_key(d, 0.0, i);
     uint base = (slot - slot_base) * uint(M * M);
     int w = hi.x - lo.x + 1;
     int cells = w * (hi.y - lo.y + 1);
@@ -126,17 +134,18 @@ uint splat(uint slot, vec3 p, mat3 f, uint i) {
         float s = dot(q, q);
         if (s >= 1.0) continue;
         vec3 t = vec3(q, sqrt(1.0 - s));
-        if (dot(t, l) < cosb) continue;  // outside the bounding sphere's cap
-        uint tc = code;
-        if (disk) {
+        float ct = dot(t, l);
+        if (ct < cosb) continue;  // outside the bounding sphere's cap
+        uint key = texel_key(d, (1.0 - ct) / max(1.0 - cosb, 1e-12), i);
+        if (disk) {  // the ray must meet the disk's plane within its radius
             float den = dot(t, axis);
-            if (abs(den) < 1e-6) continue;
-            float dist = plane / den;
+            float dist = abs(den) > 1e-6 ? plane / den : -1.0;
             vec3 x3 = dist * t - lc;
-            if (dist <= 0.0 || dot(x3, x3) > a.r * a.r) continue;
-            tc = depth_code(dist) | i;
+            float rr = dot(x3, x3);
+            if (dist <= 0.0 || rr > a.r * a.r) continue;
+            key = texel_key(dist, sqrt(rr) / max(a.r, 1e-12), i);
         }
-        atomicMin(micro[base + uint(y * M + x)], tc);
+        atomicMin(micro[base + uint(y * M + x)], key);
         hit = true;
     }
     if (!hit && l.z > 0.0) {
