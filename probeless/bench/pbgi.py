@@ -15,20 +15,21 @@ names the GL renderer, so the times are a CPU rasteriser's and only their ratios
   where the scanner stood, in front of the scanned surfaces), seen from the side so that its lit half shows;
   image up is the scan's -y. Two views as the paper's: View1 a close-up whose silhouette spans twice the image
   (the object fills the viewport), View2 the whole object covering about a third of it. For each viewport and
-  micro-buffer size, each variant's PBGI time (``MicroStats.seconds``: traversal and shading, GL finished; best
-  of ``--repeat`` rounds, the variants interleaved in each round, after one untimed warm-up render per renderer;
-  ``render_ms`` is the whole render call with the G-buffer), the extra memory (``extra_mb``: peak bytes of the
-  pair buffers, ``MicroStats.pair_bytes``; Classic has none) and the micro-buffer storage (``micro_mb``: every
-  receiver's micro-buffer, 4 bytes a texel, (s x micro)² texels with ``--supersample`` s (default 1: the paper's
-  micro-buffer), as one texture would hold them; the renderer fills them in batches of at most 64 MiB,
-  ``micro_alloc_mb`` is the buffer it holds), in 10^6 bytes. A :class:`~probeless.errors.PbgiError` is recorded
-  as ``null`` with its text (the paper's 'x').
+  micro-buffer size, each variant's PBGI time (``ms``: ``MicroStats.seconds``, traversal and shading, GL
+  finished; best of ``--repeat`` rounds, the variants interleaved in each round, after one untimed warm-up render
+  per renderer; ``render_ms``: the whole render call with the G-buffer; ``cpu_ms``: that call's process CPU time
+  over all llvmpipe threads, which other processes on the shared cores disturb less than wall time), the extra
+  memory (``extra_mb``: peak bytes of the pair buffers, ``MicroStats.pair_bytes``; Classic has none) and the
+  micro-buffer storage (``micro_mb``: every receiver's micro-buffer, 4 bytes a texel, (s x micro)² texels with
+  ``--supersample`` s (default 1: the paper's micro-buffer), as one texture would hold them; the renderer fills
+  them in batches of at most 64 MiB, ``micro_alloc_mb`` is the buffer it holds), in 10^6 bytes. A
+  :class:`~probeless.errors.PbgiError` is recorded as ``null`` with its text (the paper's 'x').
 * **Same work**: per configuration, the largest absolute difference and the relative RMS of the Mipmapped and
   Hybrid images against Classic's over the object's pixels. Gate: relative RMS <= :data:`EQUAL_REL_RMS` (the
   three compute the same cut, so the images should be identical); ``images_equal`` false fails the exit code.
 * ``hybrid_speedup`` / ``mipmapped_speedup``: Classic time / that variant's time per configuration, with the
-  largest and the median. The reference is Classic micro-buffer PBGI (Ritschel et al. 2009) with the same
-  shaders and cut (:data:`REFERENCE`).
+  largest and the median (``cpu``: the same of ``cpu_ms``). The reference is Classic micro-buffer PBGI
+  (Ritschel et al. 2009) with the same shaders and cut (:data:`REFERENCE`).
 * **Hybrid threshold** (not with ``--quick``): the Hybrid time for omega_tr = f x the micro-texel solid angle,
   f in :data:`SWEEP_FACTORS`, on room, View2, 256², 24² (the paper fixes f = 32 for its GPU): best of ``--repeat``
   rounds, each round Classic then every f, with each image checked against Classic's as above.
@@ -294,14 +295,14 @@ def render_once(renderer, cam, size: int, variant: str) -> tuple[dict, object]:
     """(figures, PbgiResult or None) of one render; a PbgiError becomes ``{"error": text}``."""
     from probeless.errors import PbgiError
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         out = renderer.render(*cam, size, size, variant=variant)
     except PbgiError as exc:
         return {"error": str(exc)}, None
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     s = out.stats
-    return {"ms": s.seconds * 1e3, "render_ms": wall * 1e3, "shade_ms": s.shade_seconds * 1e3,
+    return {"ms": s.seconds * 1e3, "render_ms": wall * 1e3, "cpu_ms": cpu * 1e3, "shade_ms": s.shade_seconds * 1e3,
             "extra_mb": s.pair_bytes / 1e6, "micro_mb": s.pixels * renderer.micro.side ** 2 * 4 / 1e6,
             "micro_alloc_mb": s.micro_bytes / 1e6, "batches": s.batches,
             "iterations": s.iterations, "pairs": s.pairs, "classic_pairs": s.classic_pairs,
@@ -361,8 +362,9 @@ def compare_variants(figs: dict, images: dict) -> dict:
         if ref is not None and v in images:
             figs[v].update(image_difference(ref, images[v], ref.mask))
             out["equal"] &= figs[v]["equal"]
-        c, t = figs.get("classic", {}).get("ms"), figs[v].get("ms")
-        out[f"{v}_speedup"] = c / t if c and t else None
+        for key, suffix in (("ms", ""), ("cpu_ms", "_cpu")):
+            c, t = figs.get("classic", {}).get(key), figs[v].get(key)
+            out[f"{v}_speedup{suffix}"] = c / t if c and t else None
     return out
 
 
@@ -452,12 +454,15 @@ def table3(st: Settings, scenes: dict, renderers: Renderers, budget: Budget) -> 
 
 
 def speedup_summary(rows: list) -> dict:
-    """Per variant: its speedups over Classic per configuration, their max and median."""
+    """Per variant: the max and median over the configurations of its speedup over Classic (PBGI wall time), and
+    the same of the process CPU time (``cpu``: less sensitive to other processes on the shared cores)."""
     out = {}
     for v in ("hybrid", "mipmapped"):
-        vals = [r[f"{v}_speedup"] for r in rows if r.get(f"{v}_speedup")]
-        out[v] = {"max": max(vals) if vals else None, "median": statistics.median(vals) if vals else None,
-                  "configs": len(vals)}
+        out[v] = {}
+        for suffix, into in (("", out[v]), ("_cpu", out[v].setdefault("cpu", {}))):
+            vals = [r[f"{v}_speedup{suffix}"] for r in rows if r.get(f"{v}_speedup{suffix}")]
+            into.update({"max": max(vals) if vals else None,
+                         "median": statistics.median(vals) if vals else None, "configs": len(vals)})
     return out
 
 
@@ -663,7 +668,8 @@ def print_table(r: dict) -> None:
     console.print(f"reference: {r['reference']}; images_equal={r['images_equal']} (gate rel RMS <= "
                   f"{r['settings']['gate_rel_rms']:g}); hybrid speedup max {_cell(h, 'max', '.2f')} median "
                   f"{_cell(h, 'median', '.2f')}; mipmapped speedup max {_cell(m, 'max', '.2f')} median "
-                  f"{_cell(m, 'median', '.2f')}; {r['configs_run']} configurations run, {r['configs_skipped']} "
+                  f"{_cell(m, 'median', '.2f')} (by CPU time: hybrid max {_cell(h['cpu'], 'max', '.2f')} median "
+                  f"{_cell(h['cpu'], 'median', '.2f')}); {r['configs_run']} configurations run, {r['configs_skipped']} "
                   f"skipped; {r['duration_s']:.0f} s")
     sw = r["hybrid_threshold_sweep"]
     if sw:

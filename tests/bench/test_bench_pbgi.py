@@ -31,6 +31,7 @@ def test_bench_pbgi_quick_one_json_object():
     for v in pbgi.VARIANTS:
         fig = row["variants"][v]
         assert positive(fig["ms"]) and fig["render_ms"] >= fig["ms"] and positive(fig["micro_mb"])
+        assert positive(fig["cpu_ms"])
     assert row["variants"]["classic"]["extra_mb"] == 0
     assert positive(row["variants"]["mipmapped"]["extra_mb"]) and positive(row["variants"]["hybrid"]["extra_mb"])
     # the same cut: the images agree (gate) and the exit code was 0
@@ -40,4 +41,5 @@ def test_bench_pbgi_quick_one_json_object():
     assert 0.2 < row["object_pixels"] / 128 ** 2 < 0.5  # View2: the sphere covers about a third of the viewport
     h = r["hybrid_speedup"]
     assert positive(row["hybrid_speedup"]) and positive(h["max"]) and positive(h["median"]) and h["configs"] == 1
+    assert positive(h["cpu"]["max"]) and positive(row["hybrid_speedup_cpu"])
     assert positive(r["mipmapped_speedup"]["max"])
