@@ -45,6 +45,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--variant", default="hybrid", choices=("classic", "mipmapped", "hybrid"))
     p.add_argument("--no-cache", action="store_true", help="render the references again")
     p.add_argument("--pictures", metavar="DIR", help="write DIR/<room>.png: references, renderings, error maps")
+    p.add_argument("--picture-rows", metavar="KEYS", help="comma-separated materials shown in the pictures, e.g. "
+                                                           "lambert,ggx-0.10 (default: all)")
     add_common_options(p, figure=("--figure", "relative RMS error against roughness per method and room "
                                               "(Figure 14's numbers)"))
 
@@ -136,14 +138,17 @@ def figure(result: dict, path: str) -> None:
     plt.close(fig)
 
 
-def pictures(room: str, images: dict, path: Path) -> None:
-    """Rows: materials; columns: Mitsuba, PBGI, envmap, IBL (tone-mapped), |dY| PBGI, |dY| envmap."""
+def pictures(room: str, images: dict, path: Path, keys=None) -> None:
+    """Rows: materials (``keys``, default all); columns: Mitsuba, PBGI, envmap, IBL (tone-mapped), |dY| PBGI,
+    |dY| envmap (0 to a quarter of the 99th-percentile luminance)."""
     import cv2
 
     from probeless.color import luminance, to_srgb8
 
     rows = []
     for key, (imgs, mask) in images.items():
+        if keys and key not in keys:
+            continue
         ref = imgs["reference"]
         white = float(np.percentile(luminance(ref[mask]), 99)) if mask.any() else 1.0
         tiles = [to_srgb8(np.clip(imgs[m] / white, 0, 1)) for m in ("reference", "pbgi", "envmap", "ibl")]
@@ -186,7 +191,8 @@ def run(ns: argparse.Namespace) -> int:
             res = evaluate_room(name, brdfs, ns, tick, images)
             if out_dir is not None:
                 res["pictures"] = str(out_dir / f"{name}.png")
-                pictures(name, images, Path(res["pictures"]))
+                pictures(name, images, Path(res["pictures"]),
+                         [k for k in ns.picture_rows.split(",") if k] if ns.picture_rows else None)
                 print(f"wrote {res['pictures']}", file=sys.stderr)
             results.append(res)
     result = {"reference": "Mitsuba 3 scalar_rgb, direct integrator (one bounce), room surfaces as area emitters "

@@ -8,6 +8,7 @@ import pytest
 from bench_checks import one_json_object, positive
 
 from probeless.bench import pbgi
+from probeless.bench.pbgi_scenes import VARIANTS
 
 pytestmark = [pytest.mark.gl, pytest.mark.slow]
 
@@ -28,7 +29,7 @@ def test_bench_pbgi_quick_one_json_object():
     (row,) = r["table3"]
     assert (row["scene"], row["view"], row["viewport"], row["micro"], row["rounds"]) == ("room", 2, 128, 16, 1)
     assert r["hybrid_threshold_sweep"] is None and r["configs_skipped"] == 0
-    for v in pbgi.VARIANTS:
+    for v in VARIANTS:
         fig = row["variants"][v]
         assert positive(fig["ms"]) and fig["render_ms"] >= fig["ms"] and positive(fig["micro_mb"])
         assert positive(fig["cpu_ms"])
