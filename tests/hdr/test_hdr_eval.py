@@ -275,6 +275,7 @@ def test_pbgi_spheres_cover_the_cubemap_spheres_pixels_and_are_linear_in_the_rad
             assert scaled["views"][i][f"{kind}_rms"] == pytest.approx(expected, rel=1e-4)
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 def test_eval_pbgi_renderer_json_and_pmatch_beats_ldr(capsys):
     """``--renderer pbgi``: the same metrics per viewpoint, the settings recorded; pmatch-rgb beats ldr on both

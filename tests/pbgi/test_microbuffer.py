@@ -173,7 +173,7 @@ def _unpack(cone):
     return unpack_cone(cone)
 
 
-@pytest.mark.parametrize("micro,size", [(16, 40), (64, 20)])
+@pytest.mark.parametrize("micro,size", [(16, 40), pytest.param(64, 20, marks=pytest.mark.slow)])
 def test_three_variants_fill_the_micro_buffers_of_the_numpy_reference(room_bsh, micro, size):
     """64 x 64 needs the resumable classic walk (llvmpipe's 65535-iteration loop guard): without it the walks stop
     early and this fails."""
