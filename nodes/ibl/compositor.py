@@ -21,10 +21,8 @@ from collections import Counter
 from dataclasses import dataclass, replace
 from typing import Any
 
-import numpy as np
-
 from probeless.errors import ParamError, SchemaError
-from probeless.ibl.composite import composite
+from probeless.ibl.composite import composite, render_camera
 from probeless.ibl.lighting import lighting_from_messages
 from probeless.ibl.objects import object_from_dict, objects_problem
 from probeless.ibl.render import IblRenderer
@@ -78,9 +76,7 @@ class IblCompositor(Node):
         if name in ("rgb", "pose") or (name == "depth" and self.params.occlusion):
             self.sync.add(name, msg)
         elif name == "camera_info":
-            if msg.model != "pinhole":
-                raise SchemaError(f"ibl_compositor: camera_info model must be pinhole, got {msg.model!r}")
-            if np.any(msg.D != 0):
+            if render_camera(msg, "ibl_compositor"):
                 self._once("distortion", "camera_info has distortion coefficients: the render ignores them")
             self.info = msg
         elif name == "depth":

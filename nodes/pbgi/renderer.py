@@ -20,9 +20,8 @@ from collections import Counter
 from dataclasses import dataclass, replace
 from typing import Any
 
-import numpy as np
-
 from probeless.errors import ParamError, PbgiError, SchemaError
+from probeless.ibl.composite import render_camera
 from probeless.ibl.lighting import linear_faces
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.lighting import Cubemap
@@ -97,9 +96,7 @@ class PbgiRendererNode(Node):
             raise ParamError("a depth input is wired but occlusion is false", node_id=self.ctx.node_id,
                              key="occlusion")
         elif name == "camera_info":
-            if msg.model != "pinhole":
-                raise SchemaError(f"pbgi_renderer: input 'camera_info': model must be pinhole, got {msg.model!r}")
-            if np.any(msg.D != 0):
+            if render_camera(msg, "pbgi_renderer"):
                 self._once("distortion", "camera_info has distortion coefficients: the render ignores them")
             self.info = msg
         elif name == "cloud":

@@ -44,3 +44,11 @@ def composite(rgb: np.ndarray, render: RenderResult, real_depth: np.ndarray | No
     if mask.any():
         out[mask] = encode_srgb8(render.color[mask])
     return out
+
+
+def render_camera(info, who: str) -> bool:
+    """Check that ``info`` (a CameraInfo) is a pinhole the compositors can render through; True when it has
+    distortion coefficients, which the renders ignore. :class:`SchemaError` names ``who`` otherwise."""
+    if info.model != "pinhole":
+        raise SchemaError(f"{who}: input 'camera_info': model must be pinhole, got {info.model!r}")
+    return bool(np.any(info.D != 0))
