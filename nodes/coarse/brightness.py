@@ -34,6 +34,7 @@ from probeless.messages.header import Header
 from probeless.messages.lighting import BrightnessDelta
 from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
+from probeless.runtime.oncelog import OnceLog
 from probeless.runtime.sync import ExactTimeSync
 
 
@@ -82,7 +83,7 @@ class BrightnessEstimator(Node):
         self.atlas: Image | None = None
         self.camera = None
         self.geometry = None          # (Floorplan message, layout, texmap, sample)
-        self.logged: set[str] = set()
+        self.once = OnceLog(self.ctx.log)
         timeout = self.params.atlas_timeout_s
         self.ctx.create_timer(min(0.05, max(0.005, timeout / 4)), self._flush, name="atlas_timeout")
 
@@ -93,7 +94,7 @@ class BrightnessEstimator(Node):
             try:
                 self.camera = model_from_info(msg)
             except ProbelessError as exc:
-                self._once("camera_info", f"unusable camera_info: {exc}")
+                self.once.error("camera_info", f"unusable camera_info: {exc}")
                 self.counts["bad_camera_info"] += 1
         elif name == "floorplan":
             self._on_floorplan(msg)
@@ -163,7 +164,7 @@ class BrightnessEstimator(Node):
                     saturated=p.saturated, offset_m=p.occlusion_offset_texels / layout.texels_per_m)
         except ProbelessError as exc:  # GeometryError: the camera is outside the (non-convex) floorplan
             reason = "geometry_error" if isinstance(exc, GeometryError) else f"rejected:{type(exc).__name__}"
-            self._once(reason, f"frame {frame.image.header.stamp_ns}: {exc}")
+            self.once.error(reason, f"frame {frame.image.header.stamp_ns}: {exc}")
             self._publish(frame.image, np.zeros(3), 0, reason)
             return
         if used and not apply_deadband(delta, p.deadband).any() and delta.any():
@@ -185,11 +186,12 @@ class BrightnessEstimator(Node):
             return "no_camera_info"
         T, data, model = frame.pose.target_from_source, frame.image.data, self.camera
         if T.shape != (4, 4) or not np.isfinite(T).all():
-            self._once("bad_pose", f"frame {frame.image.header.stamp_ns}: fisheye pose is not a finite 4x4 transform")
+            self.once.error("bad_pose",
+                            f"frame {frame.image.header.stamp_ns}: fisheye pose is not a finite 4x4 transform")
             return "bad_pose"
         if data.shape != (model.height, model.width, 3) or data.dtype != np.uint8:
-            self._once("bad_image", f"fisheye image is {data.shape} {data.dtype}, its camera_info says "
-                                    f"({model.height}, {model.width}, 3) uint8")
+            self.once.error("bad_image", f"fisheye image is {data.shape} {data.dtype}, its camera_info says "
+                                         f"({model.height}, {model.width}, 3) uint8")
             return "bad_image"
         return None if self._atlas_fits(self.atlas) else "atlas_shape_mismatch"
 
@@ -199,9 +201,9 @@ class BrightnessEstimator(Node):
         want = (layout.height, layout.width, 4)
         if atlas.data.shape == want and atlas.encoding == "rgba8":
             return True
-        self._once(f"atlas{atlas.data.shape}", f"atlas is {atlas.data.shape} {atlas.encoding}, but atlas_size="
-                   f"{self.params.atlas_size} texels_per_m={self.params.texels_per_m} give a {want} rgba8 layout: "
-                   f"give the texturer and the brightness estimator the same params")
+        self.once.error(f"atlas{atlas.data.shape}", f"atlas is {atlas.data.shape} {atlas.encoding}, but atlas_size="
+                        f"{self.params.atlas_size} texels_per_m={self.params.texels_per_m} give a {want} rgba8 layout: "
+                        f"give the texturer and the brightness estimator the same params")
         return False
 
     def _publish(self, img: Image, delta: np.ndarray, used: int, reason: str) -> None:
@@ -211,11 +213,6 @@ class BrightnessEstimator(Node):
         header = Header(img.header.stamp_ns, img.header.frame_id)
         self.ctx.publish("delta", BrightnessDelta(header, np.asarray(delta, np.float32), int(used), used > 0))
 
-    def _once(self, key: str, text: str) -> None:
-        """Log an error the first time it happens (it is counted every time)."""
-        if key not in self.logged:
-            self.logged.add(key)
-            self.ctx.log.error("%s", text)
 
     def close(self) -> None:
         if hasattr(self, "counts"):

@@ -61,6 +61,7 @@ from probeless.messages.lighting import (
 from probeless.messages.mesh import HdrPointCloud, PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
+from probeless.runtime.oncelog import OnceLog
 
 HDR_ATLAS_ENCODINGS = ("rgbf32", "rgbf16", "rgbaf32", "rgbaf16")  # linear radiance (module docstring)
 FLOAT16_MAX = float(np.finfo(np.float16).max)
@@ -131,7 +132,7 @@ class CubemapRenderer(Node):
         self.pending = False
         self.last_render_ns: int | None = None
         self.counts: Counter[str] = Counter()
-        self.logged: set[str] = set()
+        self.once = OnceLog(self.ctx.log)
         self.last_faces: dict[str, np.ndarray] = {}
         if p.max_rate_hz > 0:
             self.ctx.create_timer(min(0.05, 0.25 / p.max_rate_hz), self._maybe_render, name="render")
@@ -172,7 +173,7 @@ class CubemapRenderer(Node):
             layout = make_layout(msg.vertices, msg.ceiling_height, CoarseConfig(size, p.texels_per_m))
         except ProbelessError as exc:
             self.counts["bad_floorplan"] += 1
-            self._once("floorplan", f"floorplan rejected: {exc}")
+            self.once.error("floorplan", f"floorplan rejected: {exc}")
             return False
         self.renderer = EnvmapRenderer(layout)
         self.dense_dirty = self.dense_msg is not None or self.hdr_dense is not None
@@ -181,7 +182,7 @@ class CubemapRenderer(Node):
 
     def _world_frame(self, msg) -> bool:
         if msg.header.frame_id != "world":
-            self._once("dense_frame", f"dense model in frame '{msg.header.frame_id}', expected 'world': ignored")
+            self.once.error("dense_frame", f"dense model in frame '{msg.header.frame_id}', expected 'world': ignored")
             self.counts["dense_wrong_frame"] += 1
             return False
         return True
@@ -240,7 +241,7 @@ class CubemapRenderer(Node):
             with self.ctx.timed("upload_atlas"):
                 self.renderer.set_atlas(self.atlas.data, linear=hdr)
         except ProbelessError as exc:
-            self._once("atlas", f"atlas rejected: {exc} (give the texturer and this node the same atlas params)")
+            self.once.error("atlas", f"atlas rejected: {exc} (give the texturer and this node the same atlas params)")
             self.counts["atlas_rejected"] += 1
             return
         for oid, pos in self.objects.items():
@@ -275,10 +276,6 @@ class CubemapRenderer(Node):
     def _encode_linear(faces: np.ndarray) -> np.ndarray:
         return np.clip(faces, 0.0, FLOAT16_MAX).astype(np.float16)
 
-    def _once(self, key: str, text: str) -> None:
-        if key not in self.logged:
-            self.logged.add(key)
-            self.ctx.log.error("%s", text)
 
     def close(self) -> None:
         if getattr(self, "last_faces", None) and self.params.net_dir:

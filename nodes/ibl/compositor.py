@@ -30,6 +30,7 @@ from probeless.messages.geometry import PoseStamped
 from probeless.messages.lighting import Cubemap, SHCoefficients
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.runtime import Node, param
+from probeless.runtime.oncelog import OnceLog
 from probeless.runtime.sync import ExactTimeSync
 
 
@@ -65,19 +66,15 @@ class IblCompositor(Node):
         self.shs: dict[str, SHCoefficients] = {}
         self.dirty: set[str] = set()
         self.counts: Counter[str] = Counter()
-        self.warned: set[str] = set()
+        self.once = OnceLog(self.ctx.log)
 
-    def _once(self, key: str, text: str) -> None:
-        if key not in self.warned:
-            self.warned.add(key)
-            self.ctx.log.warning(text)
 
     def on_input(self, name: str, msg) -> None:
         if name in ("rgb", "pose") or (name == "depth" and self.params.occlusion):
             self.sync.add(name, msg)
         elif name == "camera_info":
             if render_camera(msg, "ibl_compositor"):
-                self._once("distortion", "camera_info has distortion coefficients: the render ignores them")
+                self.once.warning("distortion", "camera_info has distortion coefficients: the render ignores them")
             self.info = msg
         elif name == "depth":
             raise ParamError("a depth input is wired but occlusion is false", node_id=self.ctx.node_id,
@@ -116,7 +113,7 @@ class IblCompositor(Node):
             raise SchemaError(f"ibl_compositor: rgb must be rgb8, got {img.encoding!r}")
         if self.info is None:
             self.counts["no_camera_info"] += 1
-            self._once("info", "no camera_info yet: frames pass through unaugmented")
+            self.once.warning("info", "no camera_info yet: frames pass through unaugmented")
             self.ctx.publish("image", img)
             return
         if (self.info.width, self.info.height) != (img.width, img.height):

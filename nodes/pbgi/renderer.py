@@ -32,6 +32,7 @@ from probeless.pbgi.cloud import cloud_arrays
 from probeless.pbgi.relight import FAR_FACE, MODES, Relighter, composite_relit, pbgi_objects, pbgi_objects_problem
 from probeless.pbgi.render import SUPERSAMPLE
 from probeless.runtime import Node, param
+from probeless.runtime.oncelog import OnceLog
 from probeless.runtime.sync import ExactTimeSync
 
 
@@ -82,12 +83,8 @@ class PbgiRendererNode(Node):
         self.info: CameraInfo | None = None
         self.last_points = 0  # points at the last BSH build (0: none yet)
         self.counts: Counter[str] = Counter()
-        self.warned: set[str] = set()
+        self.once = OnceLog(self.ctx.log)
 
-    def _once(self, key: str, text: str) -> None:
-        if key not in self.warned:
-            self.warned.add(key)
-            self.ctx.log.warning(text)
 
     def on_input(self, name: str, msg) -> None:
         if name in ("rgb", "pose") or (name == "depth" and self.params.occlusion):
@@ -97,7 +94,7 @@ class PbgiRendererNode(Node):
                              key="occlusion")
         elif name == "camera_info":
             if render_camera(msg, "pbgi_renderer"):
-                self._once("distortion", "camera_info has distortion coefficients: the render ignores them")
+                self.once.warning("distortion", "camera_info has distortion coefficients: the render ignores them")
             self.info = msg
         elif name == "cloud":
             self._on_cloud(msg)
@@ -139,7 +136,7 @@ class PbgiRendererNode(Node):
         if self.info is None or not self.relighter.ready:
             what = "camera_info" if self.info is None else "cloud"
             self.counts[f"no_{what}"] += 1
-            self._once(what, f"no {what} yet: frames pass through unaugmented")
+            self.once.warning(what, f"no {what} yet: frames pass through unaugmented")
             self.ctx.publish("image", img)
             return
         if (self.info.width, self.info.height) != (img.width, img.height):
