@@ -225,6 +225,19 @@ def _pids_of(needle: str) -> list[int]:
     return pids
 
 
+def _wait_for_flushed(path: Path, topic: str, count: int, timeout_s: float = 60.0) -> None:
+    """Wait until the recording being written at ``path`` holds ``count`` messages of ``topic`` on disk."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        time.sleep(0.5)
+        if path.exists():
+            try:
+                if sum(1 for _ in BagReader(path).messages(topic)) >= count:
+                    return
+            except Exception:  # a file still being written may not parse yet
+                pass
+
+
 def test_sigkilled_recorder_leaves_a_readable_file(tmp_path):
     g = write(tmp_path / "big.yaml", """
 nodes:
@@ -236,7 +249,7 @@ nodes:
     out = tmp_path / "killed.mcap"
     proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(g), "--record", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    time.sleep(4.0)
+    _wait_for_flushed(out, "cam/image", 10)  # not a fixed sleep: under load the graph starts later
     pids = [p for p in _pids_of("bag_recorder") if str(tmp_path / "runs") in Path(f"/proc/{p}/cmdline").read_text()]
     assert len(pids) == 1
     os.kill(pids[0], signal.SIGKILL)
