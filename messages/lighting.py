@@ -45,8 +45,14 @@ class Cubemap(Message):
     faces: np.ndarray = array(("float16", "float32", "uint8"), (6, "s", "s", "c"))
     mips: tuple[CubemapLevel, ...] = ()  # prefiltered levels, increasing roughness, same dtype/channels as faces
     linear: bool = True  # True = linear HDR radiance [scene-referred]; False = display-referred LDR (sRGB)
+    # texels that show something a camera observed (not inpainted, not unseen) [face, row, col], same size as
+    # faces; 0 faces = not reported
+    observed: np.ndarray = array("bool", (None, None, None), default_factory=lambda: np.zeros((0, 0, 0), bool))
 
     def validate(self) -> None:
+        if len(self.observed) and self.observed.shape != self.faces.shape[:3]:
+            raise SchemaError(f"Cubemap.observed: shape {self.observed.shape}, expected {self.faces.shape[:3]} "
+                              "(or 0 faces: not reported)")
         if self.faces.shape[3] not in (3, 4):
             raise SchemaError(f"Cubemap.faces: expected 3 (RGB) or 4 (RGBA) channels, got {self.faces.shape[3]}")
         if not np.all(np.isfinite(self.position)):

@@ -37,9 +37,12 @@ class PointCloud(Message):
     colors: np.ndarray = array(("uint8", "float32"), ("n", 3))     # RGB per point [uint8 sRGB | float linear 0..1]
     # unit normals, 0 rows = none [-, header.frame_id]
     normals: np.ndarray = array("float32", (None, 3), default_factory=_empty(3))
+    # when each point was last fused from a frame, 0 rows = all at header.stamp_ns [ns, same clock as header]
+    stamps_ns: np.ndarray = array("int64", (None,), default_factory=lambda: np.zeros(0, np.int64))
 
     def validate(self) -> None:
         _optional_rows(self, "normals", len(self.points), "point")
+        _optional_rows(self, "stamps_ns", len(self.points), "point")
 
     def __len__(self) -> int:
         return len(self.points)
