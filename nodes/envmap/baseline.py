@@ -3,10 +3,11 @@
 Each undistorted fisheye frame and its pose (same stamp) are pasted into one accumulating cubemap,
 rotation only (see :mod:`probeless.envmap.baseline`). The map ignores translation, so every object
 gets the same faces; the object's position only labels the message. Objects as in the cubemap
-renderer: ``object_ids`` / ``object_positions`` params, and an ``object_poses`` PoseStamped whose
-``child_frame_id`` is an object id moves it (an unknown id adds one). Outputs ``envmap/<id>``
+renderer: ``objects_file``, ``object_ids`` / ``object_positions`` params, and an ``object_poses`` PoseStamped
+whose ``child_frame_id`` is an object id moves it (an unknown id adds one). Outputs ``envmap/<id>``
 (``Cubemap``, ``linear = False``: camera LDR, uint8 0..255 or float 0..1) under the cubemap
-renderer's names, with its ``object_*`` and ``face_size`` / ``dtype`` params, so consumers need no change.
+renderer's names (and every object on ``envmaps`` / ``shs``), with its ``object_*`` and ``face_size`` / ``dtype``
+params, so consumers need no change; ``Cubemap.observed`` marks the texels some fisheye frame covered.
 It also publishes ``sh/<id>`` (SH of the map linearised with the sRGB curve, as the renderer does) and
 accepts the renderer's inputs (``floorplan``, ``atlas``, ``points``, ``dense_mesh``, ``delta``, ignored,
 counted), and the renderer accepts the fisheye inputs: an envmap node wired with both sets swaps
@@ -25,9 +26,9 @@ from probeless.color import srgb_to_linear
 from probeless.envmap.baseline import BaselineMap
 from probeless.envmap.objects import (
     move_object,
+    node_objects,
     object_ids_problem,
     object_positions_problem,
-    parse_objects,
     write_nets,
 )
 from probeless.envmap.sh import project_cubemap
@@ -38,6 +39,7 @@ from probeless.messages.mesh import PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
 from probeless.runtime.sync import ExactTimeSync
+from probeless.scene.objects_file import objects_file_problem
 
 
 def _encode(faces: np.ndarray, dtype: str) -> np.ndarray:
@@ -53,10 +55,12 @@ class BaselineEnvmap(Node):
               "floorplan": Floorplan, "atlas": Image, "points": PointCloud, "dense_mesh": TriangleMesh,
               "delta": BrightnessDelta}
     IGNORED = ("floorplan", "atlas", "points", "dense_mesh", "delta")
-    OUTPUTS = {"envmap/*": Cubemap, "sh/*": SHCoefficients}
+    OUTPUTS = {"envmap/*": Cubemap, "sh/*": SHCoefficients, "envmaps": Cubemap, "shs": SHCoefficients}
 
     @dataclass(frozen=True)
     class Params:
+        objects_file: str = param("", path="file", must_exist=True, check=objects_file_problem,
+                                  doc="scene file (its virtual_objects) or objects file; '' = only the params below")
         object_ids: tuple[str, ...] = param((), check=object_ids_problem,
                                             doc="virtual objects to publish an environment map for")
         object_positions: tuple[tuple[float, ...], ...] = param((), check=object_positions_problem,
@@ -74,7 +78,7 @@ class BaselineEnvmap(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.objects = parse_objects(p.object_ids, p.object_positions, self.ctx.node_id)
+        self.objects = node_objects(p.objects_file, p.object_ids, p.object_positions, self.ctx.node_id)
         self.sync = ExactTimeSync(["fisheye", "fisheye_pose"], self._on_pair, on_unmatched=self._unmatched)
         self.map: BaselineMap | None = None
         self.counts: Counter[str] = Counter()
@@ -126,6 +130,7 @@ class BaselineEnvmap(Node):
         p = self.params
         with self.ctx.timed("publish"):
             faces = self.map.faces_as(p.dtype, p.alpha)  # shared by every object's message (read-only)
+            observed = self.map.observed() if hasattr(self.map, "observed") else np.zeros((0, 0, 0), bool)
             coeffs = project_cubemap(srgb_to_linear(np.clip(self.map.faces, 0, 1)), 5).astype(np.float32)
             for oid, position in self.objects.items():
                 obj_faces, obj_coeffs = faces, coeffs
@@ -134,8 +139,11 @@ class BaselineEnvmap(Node):
                     self.last_faces[oid] = ldr
                     obj_faces = _encode(ldr, p.dtype)
                     obj_coeffs = project_cubemap(srgb_to_linear(np.clip(ldr, 0, 1)), 5).astype(np.float32)
-                self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, position, obj_faces, linear=False))
-                self.ctx.publish(f"sh/{oid}", SHCoefficients(header, oid, 5, obj_coeffs))
+                cube = Cubemap(header, oid, position, obj_faces, linear=False, observed=observed)
+                sh = SHCoefficients(header, oid, 5, obj_coeffs)
+                for envmap_out, sh_out in ((f"envmap/{oid}", f"sh/{oid}"), ("envmaps", "shs")):
+                    self.ctx.publish(envmap_out, cube)
+                    self.ctx.publish(sh_out, sh)
 
     def close(self) -> None:
         if getattr(self, "map", None) is not None and self.params.net_dir:

@@ -3,19 +3,25 @@
 Renders when a new ``atlas`` arrives (at most ``max_rate_hz``; an atlas arriving sooner is rendered
 by a timer once the interval is over): for each object, the textured coarse model, then the
 newest dense model (``points`` or ``dense_mesh``) on top without depth testing, with the brightness
-changes ``delta`` that came after that model (summed) added to its colours, as the texturer adds
-them to texels out of view; other objects as flat spheres when
+changes ``delta`` added to its colours as the texturer adds them to texels out of view: each point gets the
+Δ summed since it was last fused (``PointCloud.stamps_ns``; without them, since the model's stamp), so
+parts of the model out of view keep up with a light switch when a new model arrives; other objects as flat
+spheres when
 ``draw_objects``. The atlas layout comes from ``floorplan`` + ``atlas_size`` / ``texels_per_m``
 exactly as in the texturer (:func:`probeless.coarse.model.make_layout`).
 
-Objects: ``object_ids`` / ``object_positions`` params; an ``object_poses`` PoseStamped whose
-``child_frame_id`` is an object id moves it (an unknown id adds an object).
+Objects: the ``objects_file`` param (a scene file's ``virtual_objects`` or an objects file:
+:mod:`probeless.scene.objects_file`) and the ``object_ids`` / ``object_positions`` params; an ``object_poses``
+PoseStamped whose ``child_frame_id`` is an object id moves it (an unknown id adds an object).
 
 Outputs per object ``<id>``: ``envmap/<id>`` (Cubemap, ``linear = False``: camera LDR units,
 sRGB-encoded like the fisheye image; uint8 or float16; ``mip_levels - 1`` box-filtered mips with
 roughness i / (mip_levels - 1)) and ``sh/<id>`` (SHCoefficients of the map linearised with the
 sRGB curve: "linear camera units" = radiance x exposure, clipped at 1 - what a renderer that
-re-encodes to the camera's sRGB needs). Stamps are the atlas's.
+re-encodes to the camera's sRGB needs). The same messages go out on ``envmaps`` and ``shs`` too, every
+object on one topic (routed by ``object_id``): a consumer wires one input whatever the objects are.
+``Cubemap.observed`` marks the texels showing an observed atlas texel or a dense point (when the renderer
+reports it). Stamps are the atlas's.
 
 HDR lighting (paper 003's future work with paper 001 §4): an ``atlas`` of a float encoding (``rgbf32``,
 ``rgbf16``, ``rgbaf32``, ``rgbaf16``; by the message convention float images are linear) is linear radiance in the
@@ -41,11 +47,12 @@ import numpy as np
 from probeless.coarse.model import CoarseConfig, make_layout
 from probeless.color import linear_to_srgb, srgb_to_linear
 from probeless.envmap.cubemap import EnvmapRenderer, prefilter
+from probeless.envmap.delta_history import DeltaHistory
 from probeless.envmap.objects import (
     move_object,
+    node_objects,
     object_ids_problem,
     object_positions_problem,
-    parse_objects,
     write_nets,
 )
 from probeless.envmap.sh import project_cubemap
@@ -62,6 +69,7 @@ from probeless.messages.mesh import HdrPointCloud, PointCloud, TriangleMesh
 from probeless.messages.sensor import CameraInfo, Image
 from probeless.runtime import Node, param
 from probeless.runtime.oncelog import OnceLog
+from probeless.scene.objects_file import objects_file_problem
 
 HDR_ATLAS_ENCODINGS = ("rgbf32", "rgbf16", "rgbaf32", "rgbaf16")  # linear radiance (module docstring)
 FLOAT16_MAX = float(np.finfo(np.float16).max)
@@ -88,7 +96,7 @@ class CubemapRenderer(Node):
               # the baseline's inputs, accepted (ignored) so the two nodes swap by their node: line alone
               "fisheye": Image, "fisheye_pose": PoseStamped, "camera_info": CameraInfo}
     IGNORED = ("fisheye", "fisheye_pose", "camera_info")
-    OUTPUTS = {"envmap/*": Cubemap, "sh/*": SHCoefficients}
+    OUTPUTS = {"envmap/*": Cubemap, "sh/*": SHCoefficients, "envmaps": Cubemap, "shs": SHCoefficients}
 
     @dataclass(frozen=True)
     class Params:
@@ -96,6 +104,8 @@ class CubemapRenderer(Node):
                                                          "texturer's); 0 = the width of the atlas images received")
         texels_per_m: float = param(0.0, min=0.0, max=10000.0,
                                     doc="texel density; 0 = fit atlas_size [texels/m] (as the texturer's)")
+        objects_file: str = param("", path="file", must_exist=True, check=objects_file_problem,
+                                  doc="scene file (its virtual_objects) or objects file; '' = only the params below")
         object_ids: tuple[str, ...] = param((), check=object_ids_problem,
                                             doc="virtual objects to render an environment map for")
         object_positions: tuple[tuple[float, ...], ...] = param((), check=object_positions_problem,
@@ -115,16 +125,19 @@ class CubemapRenderer(Node):
         sh_bands: int = param(5, min=1, max=8, doc="SH bands of the sh/* output (5 = 25 coefficients, the paper's)")
         dtype: str = param("uint8", choices=("uint8", "float16"), doc="face sample type")
         max_rate_hz: float = param(0.0, min=0.0, max=1000.0, doc="render at most this often; 0 = every atlas [Hz]")
+        observed: bool = param(True, doc="fill Cubemap.observed (texels showing an observed atlas texel or a dense "
+                                         "point): one more render pass per map")
         net_dir: str = param("", doc="write the last map of each object as a cube net, <net_dir>/cubemap_net_<id>.png, "
                                      "at the end (the paper's Figure 9); '' = none")
 
     def setup(self) -> None:
         p = self.params
-        self.objects = parse_objects(p.object_ids, p.object_positions, self.ctx.node_id)
+        self.objects = node_objects(p.objects_file, p.object_ids, p.object_positions, self.ctx.node_id)
         self.renderer: EnvmapRenderer | None = None
         self.floorplan: Floorplan | None = None
         self.atlas: Image | None = None
-        self.delta = np.zeros(3, np.float32)
+        self.history = DeltaHistory()
+        self.uploaded_total = np.zeros(3)  # Δ total baked into the uploaded dense colours
         self.dense_msg: PointCloud | TriangleMesh | None = None
         self.hdr_dense: HdrPointCloud | None = None
         self.dense_dirty = False
@@ -150,8 +163,8 @@ class CubemapRenderer(Node):
             if self._world_frame(msg):
                 self.hdr_dense, self.dense_dirty = msg, True
         elif name == "delta":
-            if msg.sampled and self.dense_msg is not None and msg.header.stamp_ns > self.dense_msg.header.stamp_ns:
-                self.delta = self.delta + np.asarray(msg.delta, np.float32)
+            if msg.sampled:
+                self.history.add(msg.header.stamp_ns, msg.delta)
         elif name == "object_poses":
             move_object(self.objects, msg, self.counts)
         self._maybe_render()
@@ -191,7 +204,6 @@ class CubemapRenderer(Node):
         if not self._world_frame(msg):
             return
         self.dense_msg, self.dense_dirty = msg, True
-        self.delta = np.zeros(3, np.float32)  # the new model's colours are as of its stamp
 
     def _dense_want(self, hdr: bool) -> tuple | None:
         """Key of the dense model the map needs (None: none): LDR, the HDR cloud, or the LDR model linearised
@@ -200,7 +212,16 @@ class CubemapRenderer(Node):
             return ("ldr",) if self.dense_msg is not None else None
         if self.hdr_dense is not None:
             return ("hdr",)
-        return ("linear", *self.delta.tolist()) if self.dense_msg is not None else None
+        return ("linear", *self.history.total().tolist()) if self.dense_msg is not None else None
+
+    def _dense_colors(self) -> np.ndarray:
+        """The dense model's LDR colours with the Δ each point has missed since it was last fused, clipped to
+        0..1; the Δ total they include is kept in ``uploaded_total`` (later Δ goes in as a uniform)."""
+        m = self.dense_msg
+        colors = to_ldr(m.colors if isinstance(m, PointCloud) else m.vertex_colors)
+        stamps = m.stamps_ns if isinstance(m, PointCloud) and len(m.stamps_ns) else [m.header.stamp_ns]
+        self.uploaded_total = self.history.total()
+        return np.clip(colors + self.history.since(stamps), 0.0, 1.0)
 
     def _upload_dense(self, want: tuple) -> None:
         """Hand the dense model ``want`` (:meth:`_dense_want`) to the renderer."""
@@ -209,20 +230,18 @@ class CubemapRenderer(Node):
         with self.ctx.timed("upload_dense"):
             if want[0] == "hdr":
                 self.renderer.set_dense(self.hdr_dense.points, self.hdr_dense.radiance, linear=True)
-            elif want[0] == "ldr":
-                if isinstance(m, PointCloud):
-                    self.renderer.set_dense(m.points, to_ldr(m.colors))
-                else:
-                    self.renderer.set_dense_mesh(m.vertices, m.triangles, to_ldr(m.vertex_colors))
-            else:
+                return
+            colors = self._dense_colors()
+            linear = want[0] == "linear"
+            if linear:
                 # imported here: probeless.hdr loads numba (about 1.5 s), which LDR maps never need
                 from probeless.hdr.coarse import dense_linear
 
-                if isinstance(m, PointCloud):
-                    self.renderer.set_dense(m.points, dense_linear(to_ldr(m.colors), self.delta), linear=True)
-                else:
-                    self.renderer.set_dense_mesh(m.vertices, m.triangles,
-                                                 dense_linear(to_ldr(m.vertex_colors), self.delta), linear=True)
+                colors = dense_linear(colors)
+            if isinstance(m, PointCloud):
+                self.renderer.set_dense(m.points, colors, linear=linear)
+            else:
+                self.renderer.set_dense_mesh(m.vertices, m.triangles, colors, linear=linear)
 
     def _maybe_render(self) -> None:
         if not self.pending or self.floorplan is None or self.atlas is None:
@@ -252,7 +271,7 @@ class CubemapRenderer(Node):
         spheres = [(x, p.object_radius, p.object_color) for o, x in self.objects.items()
                    if o != oid and p.draw_objects]
         # HDR: Δ is in camera LDR units; the LDR model's is baked into its linearised colours
-        delta = np.zeros(3, np.float32) if hdr else self.delta
+        delta = np.zeros(3, np.float32) if hdr else (self.history.total() - self.uploaded_total).astype(np.float32)
         with self.ctx.timed("cubemap"):
             faces = self.renderer.render(pos, p.face_size, delta, dense=p.dense, splat_m=p.splat_m,
                                          max_splat_px=p.max_splat_px, spheres=spheres)
@@ -263,10 +282,21 @@ class CubemapRenderer(Node):
         header = Header(self.atlas.header.stamp_ns, "world")
         enc = self._encode_linear if hdr else self._encode
         mips = tuple(CubemapLevel(r, enc(f)) for r, f in levels[1:])
-        self.ctx.publish(f"envmap/{oid}", Cubemap(header, oid, pos.copy(), enc(faces), mips, linear=hdr))
+        observed = self._observed(pos, p.face_size)
+        cube = Cubemap(header, oid, pos.copy(), enc(faces), mips, linear=hdr, observed=observed)
+        sh = SHCoefficients(header, oid, p.sh_bands, coeffs.astype(np.float32))
         self.last_faces[oid] = linear_to_srgb(np.clip(faces, 0.0, 1.0)).astype(np.float32) if hdr else faces
-        self.ctx.publish(f"sh/{oid}", SHCoefficients(header, oid, p.sh_bands, coeffs.astype(np.float32)))
+        for envmap_out, sh_out in ((f"envmap/{oid}", f"sh/{oid}"), ("envmaps", "shs")):
+            self.ctx.publish(envmap_out, cube)
+            self.ctx.publish(sh_out, sh)
         self.counts["rendered_hdr" if hdr else "rendered"] += 1
+
+    def _observed(self, pos: np.ndarray, size: int) -> np.ndarray:
+        """Cubemap.observed of the map at ``pos`` (empty when the param is off)."""
+        if not self.params.observed:
+            return np.zeros((0, 0, 0), bool)
+        with self.ctx.timed("observed"):
+            return self.renderer.observed_mask(pos, size, dense=self.params.dense)
 
     def _encode(self, faces: np.ndarray) -> np.ndarray:
         f = np.clip(faces, 0.0, 1.0)

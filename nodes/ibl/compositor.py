@@ -1,8 +1,12 @@
 """IBL compositor node (paper §4.8): virtual objects lit by their envmaps, composited into the RGB frame.
 
+Objects: the ``objects_file`` param (a scene file's ``virtual_objects``, or an objects file:
+:mod:`probeless.scene.objects_file`; objects without a material get ``material``) and the ``objects`` list.
+
 Inputs: ``rgb`` (rgb8) and ``pose`` (world_from_rgb camera, same stamp; paired exactly),
 ``camera_info`` (pinhole; distortion is ignored), and the lighting of each object: ``envmap``
-(Cubemap) and ``sh`` (SHCoefficients). Any further input whose name starts with ``envmap`` or
+(Cubemap) and ``sh`` (SHCoefficients), e.g. an envmap node's ``envmaps`` / ``shs`` (every object on one
+topic). Any further input whose name starts with ``envmap`` or
 ``sh`` (e.g. ``envmap_teapot``) is treated the same way, so one input can be wired per object
 topic; messages are routed by their ``object_id`` and the latest one per object is used.
 
@@ -24,7 +28,7 @@ from typing import Any
 from probeless.errors import ParamError, SchemaError
 from probeless.ibl.composite import composite, render_camera
 from probeless.ibl.lighting import lighting_from_messages
-from probeless.ibl.objects import object_from_dict, objects_problem
+from probeless.ibl.objects import all_objects, material_problem, object_from_dict, objects_problem
 from probeless.ibl.render import IblRenderer
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.lighting import Cubemap, SHCoefficients
@@ -32,6 +36,7 @@ from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.runtime import Node, param
 from probeless.runtime.oncelog import OnceLog
 from probeless.runtime.sync import ExactTimeSync
+from probeless.scene.objects_file import objects_file_problem
 
 
 class IblCompositor(Node):
@@ -47,6 +52,11 @@ class IblCompositor(Node):
                                          doc="virtual objects: list of {id, mesh, position, radius|scale, "
                                              "yaw_deg, up, anchor, material: {type, ...}, contact_shadow} "
                                              "(see probeless.ibl.objects)")
+        objects_file: str = param("", path="file", must_exist=True, check=objects_file_problem,
+                                  doc="scene file (its virtual_objects) or objects file, added to `objects`; '' = none")
+        material: Any = param(None, check=material_problem,
+                              doc="material of objects_file objects that name none, e.g. {type: mirror}; "
+                                  "null = mirror")
         exposure: float = param(1.0, min=0.0, max=1e6, doc="envmap linear units -> RGB camera linear units [-]")
         sh_from: str = param("topic", choices=("topic", "envmap"), doc="SH from the sh input, or projected "
                                                                        "from the envmap here")
@@ -57,7 +67,7 @@ class IblCompositor(Node):
 
     def setup(self) -> None:
         p = self.params
-        objects = [object_from_dict(o, f"objects[{i}]") for i, o in enumerate(p.objects)]  # checked at load
+        objects = [object_from_dict(o, f"objects[{i}]") for i, o in enumerate(all_objects(p))]  # checked at load
         self.renderer = IblRenderer(objects, exposure=p.exposure, near=p.near, far=p.far)
         names = ["rgb", "pose"] + (["depth"] if p.occlusion else [])
         self.sync = ExactTimeSync(names, self._on_frame, on_unmatched=self._unmatched)

@@ -1,5 +1,6 @@
 """``pbgi_renderer``: virtual objects relit by the room's point cloud (point-based GI, paper 001 §5), composited into
-the RGB frame. It swaps for ``ibl_compositor`` in one ``node:`` line: same ``objects``, same frame inputs, same output.
+the RGB frame. It swaps for ``ibl_compositor`` in one ``node:`` line: same ``objects`` / ``objects_file`` /
+``material``, same frame inputs, same output.
 
 Inputs: ``cloud`` (``mesh/PointCloud``: the SLAM node's ``model/points`` or ``cloud_file``, uint8 colours sRGB, float
 linear; or ``mesh/HdrPointCloud``: ``hdr_expander``'s radiance), ``rgb`` (rgb8) and ``pose`` (world_from_rgb camera,
@@ -23,6 +24,7 @@ from typing import Any
 from probeless.errors import ParamError, PbgiError, SchemaError
 from probeless.ibl.composite import render_camera
 from probeless.ibl.lighting import linear_faces
+from probeless.ibl.objects import all_objects, material_problem
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.lighting import Cubemap
 from probeless.messages.mesh import HdrPointCloud, PointCloud
@@ -34,6 +36,7 @@ from probeless.pbgi.render import SUPERSAMPLE
 from probeless.runtime import Node, param
 from probeless.runtime.oncelog import OnceLog
 from probeless.runtime.sync import ExactTimeSync
+from probeless.scene.objects_file import objects_file_problem
 
 
 class PbgiRendererNode(Node):
@@ -48,6 +51,10 @@ class PbgiRendererNode(Node):
         objects: tuple[Any, ...] = param((), check=pbgi_objects_problem,
                                          doc="virtual objects, as ibl_compositor's (probeless.ibl.objects); "
                                              "materials diffuse, metal, mirror or principled")
+        objects_file: str = param("", path="file", must_exist=True, check=objects_file_problem,
+                                  doc="scene file (its virtual_objects) or objects file, added to `objects`; '' = none")
+        material: Any = param(None, check=material_problem,
+                              doc="material of objects_file objects that name none; null = mirror")
         variant: str = param("hybrid", choices=("classic", "mipmapped", "hybrid"), doc="micro-buffer traversal")
         micro: int = param(24, choices=(16, 24, 32), doc="micro-buffer side [texels]")
         supersample: int = param(SUPERSAMPLE, choices=(1, 2, 3, 4),
@@ -73,7 +80,7 @@ class PbgiRendererNode(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.relighter = Relighter(pbgi_objects(p.objects), mode=p.mode, near_radius=p.near_radius,
+        self.relighter = Relighter(pbgi_objects(all_objects(p)), mode=p.mode, near_radius=p.near_radius,
                                    far_face=p.far_face, tc=p.tc, tn=p.tn, voxel=p.voxel or None,
                                    max_radius=p.max_cluster, variant=p.variant,
                                    micro=p.micro, supersample=p.supersample, exposure=p.exposure,

@@ -10,6 +10,13 @@ fisheye frame more than ``max_hold_s`` newer has arrived (``hold_expired``), whe
 try at extrapolation. With ``wait_for_bracket`` every frame newer than the last pose waits for the
 next pose (exact interpolation, up to one RGB-D period of latency).
 
+Extrinsics (``fisheye_from_rgbd``), from exactly one place: the ``extrinsics`` param (a file written by
+``probeless calibrate extrinsics``, or a scene file), the ``translation`` + ``rpy_deg`` params, or the
+``fisheye_from_rgbd`` input (e.g. the synthetic rig's or a recording's ``rig/fisheye_from_rgbd``). Frames wait
+(in the hold queue) until the input has arrived when no param gives them. When a param gives them and the input
+disagrees by more than ``max_mismatch_m`` / ``max_mismatch_deg``, the node fails naming both: a calibration that
+does not match the rig is an error, never silently one or the other.
+
 Outputs, only for frames that got a pose: ``fisheye_pose`` (stamped exactly like the frame, frame
 id = the poses' frame, child = the image's frame id) then ``fisheye`` (the frame, unchanged).
 Counters for every outcome (published by reason, dropped by reason, pose insert outcomes) are in
@@ -24,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from probeless.errors import ParamError
 from probeless.geom.rotation import invert_transform, transform_from_rpy
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
@@ -35,6 +43,39 @@ from probeless.tracking.interp import PoseBuffer
 def fisheye_from_rgbd(translation, rpy_deg) -> np.ndarray:
     """4x4 fisheye_from_rgbd from the scene-file convention: p_fisheye = R p_rgbd + t, R from roll/pitch/yaw."""
     return transform_from_rpy(translation, rpy_deg)
+
+
+def _extrinsics_problem(path: str) -> str | None:
+    if not path:
+        return None
+    from probeless.cameras.extrinsics import load_extrinsics
+    from probeless.errors import ProbelessError
+
+    try:
+        load_extrinsics(path)
+    except ProbelessError as exc:
+        return str(exc)
+    return None
+
+
+def _rpy_problem(rpy, params) -> str | None:
+    given = [params.extrinsics != "", params.translation is not None or rpy is not None]
+    if (params.translation is None) != (rpy is None):
+        return "give translation and rpy_deg together (or neither)"
+    if all(given):
+        return "give the extrinsics file or translation + rpy_deg, not both"
+    return None
+
+
+def param_extrinsics(p) -> np.ndarray | None:
+    """fisheye_from_rgbd (4, 4) from the params, or None when they leave it to the input."""
+    if p.extrinsics:
+        from probeless.cameras.extrinsics import load_extrinsics
+
+        return load_extrinsics(p.extrinsics)
+    if p.translation is not None:
+        return fisheye_from_rgbd(p.translation, p.rpy_deg)
+    return None
 
 
 def _ns(seconds: float) -> int:
@@ -49,11 +90,19 @@ class PoseInterp(Node):
 
     @dataclass(frozen=True)
     class Params:
-        translation: tuple[float, ...] = param(length=3, finite=True,
-                                               doc="fisheye_from_rgbd translation t (p_fisheye = R p_rgbd + t) [m]; "
-                                                   "the fisheye_from_rgbd input (target_from_source) overrides it")
-        rpy_deg: tuple[float, ...] = param(length=3, finite=True,
-                                           doc="fisheye_from_rgbd rotation R = Rz(yaw) Ry(pitch) Rx(roll) [deg]")
+        extrinsics: str = param("", path="file", must_exist=True, check=_extrinsics_problem,
+                                doc="fisheye_from_rgbd from a `probeless calibrate extrinsics` output (or a scene "
+                                    "file); '' = the translation/rpy_deg params or the fisheye_from_rgbd input")
+        translation: tuple[float, ...] | None = param(None, length=3, finite=True,
+                                                      doc="fisheye_from_rgbd translation t (p_fisheye = R p_rgbd + t) "
+                                                          "[m]; null = from `extrinsics` or the input")
+        rpy_deg: tuple[float, ...] | None = param(None, length=3, finite=True, check=_rpy_problem,
+                                                  doc="fisheye_from_rgbd rotation R = Rz(yaw) Ry(pitch) Rx(roll) "
+                                                      "[deg]; with translation")
+        max_mismatch_m: float = param(0.001, min=0.0, max=10.0, doc="largest translation difference between a "
+                                                                    "param's extrinsics and the input's [m]")
+        max_mismatch_deg: float = param(0.1, min=0.0, max=180.0, doc="largest rotation difference between a "
+                                                                     "param's extrinsics and the input's [deg]")
         max_extrapolation_s: float = param(0.05, min=0.0, max=10.0, doc="how far beyond the newest (or oldest) "
                                                                         "pose a pose may be extrapolated [s]")
         wait_for_bracket: bool = param(False, doc="hold frames newer than the last pose until the next pose "
@@ -68,7 +117,8 @@ class PoseInterp(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.rgbd_from_fisheye = invert_transform(fisheye_from_rgbd(p.translation, p.rpy_deg))
+        self.fixed = param_extrinsics(p)
+        self.rgbd_from_fisheye = None if self.fixed is None else invert_transform(self.fixed)
         self.poses = PoseBuffer(p.buffer_length, _ns(p.jump_back_s), _ns(p.max_gap_s))
         self.max_extrap_ns, self.max_hold_ns, self.jump_ns = (_ns(p.max_extrapolation_s), _ns(p.max_hold_s),
                                                               _ns(p.jump_back_s))
@@ -84,10 +134,27 @@ class PoseInterp(Node):
         elif name == "fisheye":
             self._on_fisheye(msg)
         else:
-            self.rgbd_from_fisheye = invert_transform(msg.target_from_source)
-            self.counts["extrinsics_updates"] += 1
-            self.ctx.log.info("fisheye_from_rgbd from the input (stamp %d): translation %s", msg.header.stamp_ns,
-                              np.round(msg.translation, 4).tolist())
+            self._on_extrinsics(msg)
+
+    def _on_extrinsics(self, msg: PoseStamped) -> None:
+        T = msg.target_from_source
+        if self.fixed is not None:
+            dt = float(np.linalg.norm(T[:3, 3] - self.fixed[:3, 3]))
+            cos = (np.trace(T[:3, :3].T @ self.fixed[:3, :3]) - 1.0) / 2.0
+            deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+            if dt > self.params.max_mismatch_m or deg > self.params.max_mismatch_deg:
+                key = "extrinsics" if self.params.extrinsics else "translation"
+                raise ParamError(f"the fisheye_from_rgbd input differs from the param's by {dt * 1000:.1f} mm and "
+                                 f"{deg:.2f} deg (limits {self.params.max_mismatch_m * 1000:.1f} mm, "
+                                 f"{self.params.max_mismatch_deg} deg): the calibration does not match the rig",
+                                 node_id=self.ctx.node_id, key=key)
+            self.counts["extrinsics_input_agrees"] += 1
+            return
+        self.rgbd_from_fisheye = invert_transform(T)
+        self.counts["extrinsics_updates"] += 1
+        self.ctx.log.info("fisheye_from_rgbd from the input (stamp %d): translation %s", msg.header.stamp_ns,
+                          np.round(T[:3, 3], 4).tolist())
+        self._release()
 
     def _on_pose(self, msg: PoseStamped) -> None:
         t = msg.header.stamp_ns
@@ -134,6 +201,10 @@ class PoseInterp(Node):
         ``final`` names why this is the frame's last chance; then it is extrapolated if it can be.
         """
         t = img.header.stamp_ns
+        if self.rgbd_from_fisheye is None:  # no extrinsics yet: wait for the input
+            if final:
+                self.counts["drop:no_extrinsics"] += 1
+            return bool(final)
         waiting = self._waiting(t)
         extrap = self.max_extrap_ns if final or not (self.params.wait_for_bracket and waiting) else 0
         with self.ctx.timed("interpolate"):

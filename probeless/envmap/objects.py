@@ -1,7 +1,7 @@
 """Virtual objects of the environment-map nodes: positions from params and poses, and their nets.
 
-Shared by ``cubemap_renderer`` and ``baseline_envmap`` (they take the same ``object_ids`` /
-``object_positions`` params and ``object_poses`` input, so the two swap by one ``node:`` line).
+Shared by ``cubemap_renderer`` and ``baseline_envmap`` (they take the same ``objects_file``,
+``object_ids`` / ``object_positions`` params and ``object_poses`` input, so the two swap by one ``node:`` line).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import numpy as np
 
 from probeless.errors import ParamError
 from probeless.messages.geometry import PoseStamped
+from probeless.scene.objects_file import load_objects, object_positions
 from probeless.scene.preview import cube_net, write_png
 
 
@@ -47,6 +48,16 @@ def parse_objects(ids: tuple, positions: tuple, node_id: str) -> dict[str, np.nd
         if problem:
             raise ParamError(problem, node_id=node_id, key=key)
     return {oid: np.asarray(pos, np.float64) for oid, pos in zip(ids, positions)}
+
+
+def node_objects(objects_file: str, ids: tuple, positions: tuple, node_id: str) -> dict[str, np.ndarray]:
+    """{id: position} of an envmap node: the ``objects_file``'s objects, then the params' (ids must not repeat)."""
+    objects = object_positions(load_objects(objects_file)) if objects_file else {}
+    for oid, pos in parse_objects(ids, positions, node_id).items():
+        if oid in objects:
+            raise ParamError(f"object {oid!r} is in objects_file and object_ids", node_id=node_id, key="object_ids")
+        objects[oid] = pos
+    return objects
 
 
 def move_object(objects: dict[str, np.ndarray], msg: PoseStamped, counts: Counter) -> None:

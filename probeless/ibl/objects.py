@@ -71,3 +71,27 @@ def objects_problem(specs, resolve: Callable[[Mapping[str, Any]], Mapping[str, A
     if len(set(ids)) != len(ids):
         return f"object ids must be unique, got {ids}"
     return None
+
+
+def material_problem(spec) -> str | None:
+    """The ``material`` param rule (default material of file objects): null, or a material mapping that builds."""
+    if spec is None:
+        return None
+    try:
+        material_from_dict(spec, "material")
+    except SceneError as exc:
+        return str(exc)
+    return None
+
+
+def all_objects(params) -> list[Mapping[str, Any]]:
+    """The object mappings of a node with ``objects_file`` + ``material`` + ``objects`` params: the file's objects
+    (:func:`probeless.scene.objects_file.load_objects`) then the list; SceneError when an id repeats."""
+    from probeless.scene.objects_file import load_objects
+
+    specs = [*(load_objects(params.objects_file, params.material) if params.objects_file else []), *params.objects]
+    ids = [s.get("id") for s in specs if isinstance(s, Mapping)]
+    dup = sorted({i for i in ids if ids.count(i) > 1})
+    if dup:
+        raise SceneError(f"object ids {dup} appear twice (objects_file and objects)")
+    return specs

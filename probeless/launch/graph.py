@@ -114,9 +114,7 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
         if key not in TOP_KEYS:
             err(f"unknown top-level key{_suggest(key, TOP_KEYS)}", doc.line_of(key), key=key)
     args = resolve_args(doc.get("args"), overrides, err, doc.line_of("args"), is_root=not stack)
-    defaults = Substituter({}, path.parent, err)  # a default may use $(dirname) and $(env), not $(arg)
-    args = {k: defaults(v, doc.line_of("args")) if k not in overrides and isinstance(v, str) and "$(arg" not in v
-            else v for k, v in args.items()}
+    args = _defaults(args, overrides, doc, path, err)
     if not stack:
         graph.args = dict(args)
     subst = Substituter(args, path.parent, err)
@@ -134,6 +132,19 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
                 decl.line, node_id=decl.id, key="id")
             continue
         graph.nodes[decl.id] = decl
+
+
+def _defaults(args: dict, overrides: dict, doc: LineDict, path: Path, err) -> dict:
+    """Substitute the defaults: a default may use $(dirname), $(env) and $(arg NAME) of an argument declared
+    above it (e.g. ``objects: {default: $(arg scene)}``)."""
+    out: dict = {}
+    decl = doc.get("args") or {}
+    for k, v in args.items():
+        if k not in overrides and isinstance(v, str):
+            line = decl.line_of(k) if isinstance(decl, LineDict) else doc.line_of("args")
+            v = Substituter(dict(out), path.parent, err)(v, line)
+        out[k] = v
+    return out
 
 
 def _suggest(key: Any, allowed: set[str]) -> str:

@@ -268,11 +268,11 @@ def test_node_replay_loop_restarts_cleanly():
     assert ctx.counts["pose:time_jump"] == 1 and not any(k.startswith("drop:") for k in ctx.counts)
 
 
-def test_node_extrinsics_input_overrides_the_params():
+def test_node_extrinsics_from_the_input_alone():
     other = transform_from_rpy([0.05, 0.0, 0.1], [-80.0, 5.0, 0.0])
     stream = [("fisheye_from_rgbd", PoseStamped(Header(0, "fisheye"), "rgbd", other)),
               pose_msg(0), pose_msg(33 * MS), fisheye_msg(13 * MS)]
-    (pose, frame), = pairs(run(stream))
+    (pose, frame), = pairs(run(stream, translation=None, rpy_deg=None))
     assert pose.header.stamp_ns == frame.header.stamp_ns == 13 * MS
     truth = true_pose(0.013) @ np.linalg.inv(other)
     assert angle_deg(pose.rotation, truth[:3, :3]) < 1e-6 and np.abs(pose.translation - truth[:3, 3]).max() < 1e-9
