@@ -26,6 +26,8 @@ _MAX_BIN = 0xFFFFFFFF
 def _view(frame: Any) -> memoryview:
     buf = getattr(frame, "buffer", frame)  # zmq.Frame exposes .buffer
     view = buf if isinstance(buf, memoryview) else memoryview(buf)
+    if view.nbytes == 0:  # an empty array of any shape (e.g. a (0, 0, 0) mask): memoryview.cast refuses zeros
+        return memoryview(b"")
     if view.ndim != 1 or view.itemsize != 1:
         view = view.cast("B") if view.c_contiguous else memoryview(bytes(view))
     return view
