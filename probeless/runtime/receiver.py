@@ -205,4 +205,9 @@ class Receiver(threading.Thread):
 
     def stop(self, wake_tx: zmq.Socket) -> None:
         self.stopping = True
-        wake_tx.send(b"")
+        try:
+            # never block: the thread may already have seen `stopping` and closed its end, and a PAIR send with no
+            # peer waits forever (a node then hung at exit); it polls every 500 ms and sees the flag anyway
+            wake_tx.send(b"", zmq.NOBLOCK)
+        except zmq.Again:
+            pass
