@@ -1,0 +1,249 @@
+"""``probeless eval envmap --graph GRAPH SCENE_OR_BAG``: score the shipped graph's environment maps.
+
+What ships is scored, not a re-implementation: the graph (``launch/probeless.yaml`` by default) runs as
+``probeless launch`` runs it, on a ``probeless scene render`` recording replayed in lockstep (``source:=recording
+rate:=0``: every message waits for the graph, so no frame is dropped and a run is reproducible), with the
+poses from its SLAM, its pose interpolation, the calibration and floorplan the recording *gives* (a
+``*_realistic`` scene's perturbed ones), and its own Δ handling. Each method is one run with one ``node:``
+swap (``envmap_node:=cubemap_renderer`` for ``ours``, ``baseline_envmap`` for ``baseline``); its ``envmap/envmaps``
+topic is recorded and every map is scored against the recording's truth for the same fisheye frame
+(``rig/gt/envmap/<id>``, linear HDR, and ``rig/gt/envmap_ldr/<id>``, the fisheye's LDR units at that moment) with
+:func:`probeless.envmap.score.score_envmap`, on the texels both methods observed (``Cubemap.observed``).
+
+A scene file is rendered first (cached under ``out/cache/eval_envmap`` by the scene file's content, the
+duration and the truth size).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import subprocess
+import sys
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from probeless.errors import BagError, ProbelessError
+from probeless.paths import REPO_ROOT
+
+GRAPH_METHODS = {"ours": "cubemap_renderer", "baseline": "baseline_envmap"}
+CACHE = Path("out/cache/eval_envmap")
+
+
+@dataclass
+class Truth:
+    """The recording's truth per fisheye frame, keyed by the fisheye clock's stamp."""
+
+    hdr: dict[tuple[str, int], np.ndarray] = field(default_factory=dict)   # (object, stamp) -> linear (6, S, S, 3)
+    ldr: dict[tuple[str, int], np.ndarray] = field(default_factory=dict)   # (object, stamp) -> camera LDR 0..1
+    exposure: dict[int, np.ndarray] = field(default_factory=dict)          # stamp -> (3,) gains [-]
+    start_ns: int = 0
+
+
+@dataclass
+class GraphRun:
+    """One method's maps: (object, stamp) -> (faces camera LDR 0..1, observed mask or None)."""
+
+    method: str
+    maps: dict[tuple[str, int], tuple[np.ndarray, np.ndarray | None]]
+    log: Path
+
+
+def render_recording(scene: str, duration: float | None, envmap_size: int, show_progress: bool) -> Path:
+    """The scene's ``probeless scene render`` recording (with truth maps), rendered once and cached."""
+    from probeless.scene.extends import scene_yaml
+
+    text = scene_yaml(scene)
+    key = hashlib.sha256(f"{text}|{duration}|{envmap_size}".encode()).hexdigest()[:16]
+    out = CACHE / f"{Path(scene).stem}_{key}.mcap"
+    if out.is_file():
+        return out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    cmd = [sys.executable, "-m", "probeless", "scene", "render", scene, "-o", str(out), "--force",
+           "--envmap-size", str(envmap_size)] + ([] if duration is None else ["--duration", str(duration)])
+    _run(cmd, out.with_suffix(".log"), show_progress)
+    return out
+
+
+def _run(cmd: list[str], log: Path, show_output: bool) -> None:
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with open(log, "w", encoding="utf-8") as f:
+        proc = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=Path.cwd())
+    if proc.returncode != 0:
+        tail = "\n".join(log.read_text(errors="replace").splitlines()[-15:])
+        raise ProbelessError(f"`{' '.join(cmd)}` failed (exit {proc.returncode}); log {log}:\n{tail}")
+
+
+def run_graph(graph: str, recording: Path, objects: str, method: str, out_dir: Path, args: list[str],
+              show_progress: bool) -> GraphRun:
+    """Launch ``graph`` in lockstep on ``recording`` with ``method``'s envmap node; read back its maps."""
+    run_dir = out_dir / method
+    maps = run_dir / "maps.mcap"
+    cmd = [sys.executable, "-m", "probeless", "launch", graph, "source:=recording", f"bag:={recording}", "rate:=0",
+           f"objects:={objects}", f"envmap_node:={GRAPH_METHODS[method]}", f"out_dir:={run_dir}", *args,
+           "--record", str(maps), "--record-topics", "envmap/envmaps", "--force"]
+    _run(cmd, run_dir / "launch.log", show_progress)
+    return GraphRun(method, read_maps(maps), run_dir / "launch.log")
+
+
+def read_maps(path: Path) -> dict[tuple[str, int], tuple[np.ndarray, np.ndarray | None]]:
+    """(object, stamp) -> (camera LDR faces 0..1 float32, observed (6, S, S) or None) of a recorded envmaps topic."""
+    from probeless.bag.reader import BagReader
+
+    out = {}
+    with BagReader(path) as reader:
+        for m in reader.messages(["envmap/envmaps"]):
+            cube = reader.decode(m)
+            if cube.linear:
+                raise ProbelessError(f"{path}: linear (HDR) maps are not scored here (lighting:=ldr only)")
+            faces = cube.faces[..., :3]
+            faces = faces.astype(np.float32) / 255.0 if faces.dtype == np.uint8 else faces.astype(np.float32)
+            out[cube.object_id, cube.header.stamp_ns] = (faces, cube.observed if len(cube.observed) else None)
+    if not out:
+        raise ProbelessError(f"{path}: the graph published no environment map (see the launch log next to it)")
+    return out
+
+
+def read_truth(recording: Path) -> Truth:
+    """The recording's true maps and fisheye gains, keyed by the fisheye frame's stamp (its own clock)."""
+    from probeless.bag.reader import BagReader
+
+    truth = Truth()
+    true_stamps: dict[str, list[tuple[int, Any]]] = defaultdict(list)
+    gains: list[tuple[int, np.ndarray]] = []
+    with BagReader(recording) as reader:
+        truth.start_ns = reader.start_ns or 0
+        for m in reader.messages():
+            if m.topic.startswith(("rig/gt/envmap/", "rig/gt/envmap_ldr/")):
+                true_stamps[m.topic].append((m.log_time_ns, reader.decode(m)))
+            elif m.topic == "rig/gt/fisheye_exposure":
+                msg = reader.decode(m)
+                gains.append((msg.header.stamp_ns, np.asarray(msg.data, np.float64).reshape(3)))
+    if not true_stamps:
+        raise BagError(f"{recording}: no rig/gt/envmap/* topics (render it without --no-envmaps)")
+    if not gains:
+        raise BagError(f"{recording}: no rig/gt/fisheye_exposure topic (re-render it with this version)")
+    for topic, msgs in true_stamps.items():
+        if len(msgs) != len(gains):
+            raise BagError(f"{recording}: {len(msgs)} {topic} messages but {len(gains)} fisheye frames")
+        for (stamp, exposure), (_, cube) in zip(sorted(gains, key=lambda g: g[0]), sorted(msgs, key=lambda x: x[0])):
+            truth.exposure[stamp] = exposure
+            if topic.startswith("rig/gt/envmap_ldr/"):
+                truth.ldr[cube.object_id, stamp] = cube.faces[..., :3].astype(np.float32) / 255.0
+            else:
+                truth.hdr[cube.object_id, stamp] = cube.faces[..., :3].astype(np.float32)
+    return truth
+
+
+def scene_of(path: str) -> str:
+    """The scene file of a scene file or of a ``scene render`` recording (its stored scene)."""
+    from probeless.eval.envmap import _scene_path
+
+    return _scene_path(path)
+
+
+def graph_path(graph: str) -> str:
+    """``graph`` as given, or relative to the repository when it is not a file here (``launch/probeless.yaml``)."""
+    p = Path(graph)
+    if p.is_file():
+        return str(p)
+    if (REPO_ROOT / p).is_file():
+        return str(REPO_ROOT / p)
+    raise ProbelessError(f"--graph {graph}: file not found")
+
+
+def score_runs(runs: dict[str, GraphRun], truth: Truth) -> dict[str, dict[str, dict[str, Any]]]:
+    """method -> object -> {score: mean, "series": {score: [...]}, "times_s": [...]}: every map whose fisheye frame
+    has a truth and that every method published, scored on the texels all methods observed."""
+    from probeless.envmap.score import SCORES, score_envmap
+
+    keys = sorted(set.intersection(*(set(r.maps) for r in runs.values())) & set(truth.ldr), key=lambda k: (k[1], k[0]))
+    if not keys:
+        raise ProbelessError("no map stamp is shared by every method and the truth: nothing to score")
+    out: dict[str, dict[str, dict[str, Any]]] = {m: {} for m in runs}
+    for oid, stamp in keys:
+        size = truth.ldr[oid, stamp].shape[1]
+        masks = [_down(r.maps[oid, stamp][1], size) for r in runs.values()]
+        common = np.logical_and.reduce([m for m in masks if m is not None]) if any(m is not None for m in masks) \
+            else None
+        for method, run in runs.items():
+            faces, observed = run.maps[oid, stamp]
+            scores = score_envmap(faces, truth.ldr[oid, stamp], truth.hdr[oid, stamp],
+                                  exposure=truth.exposure[stamp], observed=_down(observed, size), common=common)
+            entry = out[method].setdefault(oid, {"series": {k: [] for k in SCORES}, "times_s": []})
+            for k in SCORES:
+                entry["series"][k].append(scores[k])
+            entry["times_s"].append((stamp - truth.start_ns) / 1e9)
+    for per_object in out.values():
+        for entry in per_object.values():
+            for k, values in entry["series"].items():
+                entry[k] = float(np.nanmean(values)) if np.isfinite(values).any() else float("nan")
+    return out
+
+
+def _down(mask: np.ndarray | None, size: int) -> np.ndarray | None:
+    """A texel of the ``size`` map counts as observed when every texel of ``mask`` it covers is."""
+    if mask is None:
+        return None
+    k = mask.shape[1] // size
+    if k * size != mask.shape[1]:
+        raise ProbelessError(f"observed mask of {mask.shape[1]} texels is not a multiple of the truth's {size}")
+    return mask.reshape(6, size, k, size, k).all(axis=(2, 4))
+
+
+def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: float | None, envmap_size: int,
+                   out_dir: Path, graph_args: list[str], show_progress: bool) -> dict[str, Any]:
+    """Render (a scene) or take (a recording), run the graph once per method, score (module doc)."""
+    from probeless.progress import progress
+
+    graph = graph_path(graph)
+    scene = scene_of(source)
+    recording = Path(source) if Path(source).suffix == ".mcap" else render_recording(source, duration, envmap_size,
+                                                                                      show_progress)
+    runs = {}
+    with progress(len(methods), f"graph runs on {Path(source).name}", enabled=show_progress) as tick:
+        for method in methods:
+            runs[method] = run_graph(graph, recording, scene, method, out_dir, graph_args, show_progress)
+            tick()
+    scores = score_runs(runs, read_truth(recording))
+    result: dict[str, Any] = {"mode": "graph", "graph": graph, "scene": scene, "recording": str(recording),
+                              "graph_args": graph_args, "units": "camera LDR (PSNR peak 1); HDR scores vs gt/envmap",
+                              "methods": scores}
+    if "ours" in scores and "baseline" in scores:
+        result["ours_minus_baseline"] = {
+            o: {k: scores["ours"][o][k] - scores["baseline"][o][k] for k in ("psnr_common", "psnr_all")}
+            | {"sh_diffuse_error_ratio": scores["ours"][o]["sh_diffuse_error_ldr"]
+               / max(scores["baseline"][o]["sh_diffuse_error_ldr"], 1e-12)}
+            for o in scores["ours"]}
+    return result
+
+
+def add_graph_arguments(p) -> None:
+    """``--graph`` and its options (``probeless eval envmap``)."""
+    g = p.add_argument_group("graph mode (score the shipped graph)")
+    g.add_argument("--graph", metavar="GRAPH", help="run this graph in lockstep on the recording (e.g. "
+                                                     "launch/probeless.yaml) and score its envmap topics")
+    g.add_argument("--graph-methods", nargs="+", choices=list(GRAPH_METHODS), default=list(GRAPH_METHODS),
+                   help="envmap_node swaps to run (default: ours baseline)")
+    g.add_argument("--graph-arg", action="append", default=[], metavar="NAME:=VALUE",
+                   help="extra graph argument for every run, e.g. dense:=false (repeatable)")
+    g.add_argument("--truth-size", type=int, default=32, help="truth cubemap face size when rendering a scene "
+                                                              "[texels] (default 32)")
+    g.add_argument("--runs-dir", metavar="DIR", default="out/eval_envmap_graph",
+                   help="where each run's maps, video and launch log go (default out/eval_envmap_graph/<scene>)")
+
+
+def graph_table(result: dict[str, Any]) -> str:
+    """The graph-mode scores as a text table (mode and graph in the title)."""
+    from probeless.envmap.score import SCORES
+
+    cols = [k for k in SCORES if k not in ("psnr_all",)] + ["psnr_all"]
+    lines = [f"mode: graph ({result['graph']}, lockstep on {result['recording']})",
+             f"{'method':<10}{'object':<10}" + "".join(f"{k:>21}" for k in cols)]
+    for method, objects in result["methods"].items():
+        for oid, e in objects.items():
+            lines.append(f"{method:<10}{oid:<10}" + "".join(f"{e[k]:>21.3f}" for k in cols))
+    return "\n".join(lines)
