@@ -1,4 +1,7 @@
-"""Synthetic rig node: renders a scene file's RGB-D and fisheye cameras and ground truth (see probeless.scene.rig)."""
+"""Synthetic rig node: renders a scene file's RGB-D and fisheye cameras and ground truth (see probeless.scene.rig).
+
+Once at the start it publishes ``floorplan`` and ``fisheye_from_rgbd`` (both as the scene's ``given`` block
+tells the pipeline); ``seed`` seeds the base depth noise, the scene's ``sensor_effects.seed`` its effects."""
 
 from __future__ import annotations
 
@@ -26,8 +29,8 @@ class SyntheticRig(Node):
     OUTPUTS = {
         "rgb": Image, "depth": DepthImage, "fisheye": Image, "floorplan": Floorplan,
         "rgbd/camera_info": CameraInfo, "fisheye/camera_info": CameraInfo,
-        "gt/rgbd_pose": PoseStamped, "gt/fisheye_pose": PoseStamped,
-        "gt/envmap/*": Cubemap, "gt/envmap_ldr/*": Cubemap,
+        "gt/rgbd_pose": PoseStamped, "gt/fisheye_pose": PoseStamped, "fisheye_from_rgbd": PoseStamped,
+        "gt/fisheye_exposure": Image, "gt/envmap/*": Cubemap, "gt/envmap_ldr/*": Cubemap,
     }
 
     @dataclass(frozen=True)
@@ -43,7 +46,7 @@ class SyntheticRig(Node):
         envmap_size: int = param(64, min=4, max=2048, doc="ground-truth cubemap face size [texels]")
         fisheye_cube_size: int = param(512, min=16, max=4096,
                                        doc="cubemap resolution behind the fisheye image [texels]")
-        seed: int = param(0, min=0, doc="depth-noise seed")
+        seed: int = param(0, min=0, doc="depth-noise seed (also mixed into the scene's sensor_effects streams)")
         stamps: str = param("scene", choices=("scene", "wall"),
                             doc="scene = scene time from 0 (reproducible); wall = the node clock when the frame is "
                                 "rendered, like a live camera's host stamps")
@@ -67,6 +70,7 @@ class SyntheticRig(Node):
         if not self.floorplan_sent:
             origin_ns = self.ctx.now_ns() if self.params.stamps == "wall" else 0
             self.ctx.publish("floorplan", shift_stamp(self.rig.floorplan(), origin_ns))
+            self.ctx.publish("fisheye_from_rgbd", shift_stamp(self.rig.fisheye_from_rgbd_message(), origin_ns))
             self.floorplan_sent = True
         if self.next >= len(self.events):
             self._at_end()

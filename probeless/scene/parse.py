@@ -9,10 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from probeless.errors import GraphError, SceneError
+from probeless.errors import SceneError
 from probeless.geom.rotation import rotation_from_rpy
-from probeless.launch.yamlload import load_yaml
+from probeless.scene.extends import load_scene_doc, plain
 from probeless.scene.fields import Where, boolean, integer, mapping, number, sequence, string, vector
+from probeless.scene.parse_effects import parse_given, parse_sensor_effects
 from probeless.scene.spec import (
     FisheyeCamera,
     Furniture,
@@ -34,12 +35,10 @@ def load_scene(path: str | Path) -> Scene:
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"{path}: scene file not found")
-    try:
-        doc = load_yaml(path)
-    except GraphError as exc:
-        raise SceneError(exc.format()) from None
-    top = Where(str(path))
-    mapping(doc, top, ("name", "room", "rig", "trajectory"), ("lights", "furniture", "virtual_objects"))
+    doc, chain = load_scene_doc(path)
+    top = Where(f"{path} (extends {', '.join(str(p) for p in chain)})" if chain else str(path))
+    mapping(doc, top, ("name", "room", "rig", "trajectory"),
+            ("lights", "furniture", "virtual_objects", "sensor_effects", "given"))
     room = mapping(doc["room"], top.child("room", doc), ("floorplan", "ceiling_height"), ("materials", "windows"))
     rw = top.child("room", doc)
     floor = np.array([vector(v, rw.child("floorplan", room).child(i, room["floorplan"]), 2)
@@ -61,6 +60,9 @@ def load_scene(path: str | Path) -> Scene:
                               for i, v in enumerate(_list(doc, "virtual_objects", top))),
         **_rig(doc["rig"], top.child("rig", doc)),
         keyframes=_trajectory(doc["trajectory"], top.child("trajectory", doc)),
+        sensor_effects=(parse_sensor_effects(doc["sensor_effects"], top.child("sensor_effects", doc))
+                        if doc.get("sensor_effects") is not None else None),
+        given=parse_given(doc["given"], top.child("given", doc), path.parent) if doc.get("given") is not None else None,
     )
     check_scene(scene, top, doc)
     return scene
@@ -133,12 +135,19 @@ def _furniture(v, where: Where, root: Path) -> Furniture:
 
 
 def _virtual(v, where: Where) -> VirtualObject:
-    mapping(v, where, ("id", "position", "radius"))
+    mapping(v, where, ("id", "position", "radius"), ("material", "mesh"))
     oid = string(v["id"], where.child("id", v))
     if not oid.replace("_", "").replace("-", "").isalnum():
         raise where.child("id", v).error(f"{oid!r}: use letters, digits, '_' and '-' (it becomes a topic name)")
+    material = None
+    if v.get("material") is not None:
+        mw = where.child("material", v)
+        material = mapping(v["material"], mw, ("type",), tuple(k for k in v["material"] if k != "type"))
+        string(material["type"], mw.child("type", material))
+        material = plain(material)
     return VirtualObject(oid, vector(v["position"], where.child("position", v), 3),
-                         number(v["radius"], where.child("radius", v), min=0, strict_min=True))
+                         number(v["radius"], where.child("radius", v), min=0, strict_min=True), material,
+                         string(v.get("mesh", "sphere"), where.child("mesh", v)))
 
 
 def _rig(v, where: Where) -> dict:

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from probeless.scene.effects_spec import Given, SensorEffects
+
 
 @dataclass(frozen=True)
 class Material:
@@ -71,6 +73,8 @@ class VirtualObject:
     id: str
     position: np.ndarray  # (3,) centre [m, world]
     radius: float         # bounding sphere radius [m]
+    material: dict | None = None  # e.g. {type: mirror} or {type: diffuse, albedo: [..]}, passed through untouched
+    mesh: str = "sphere"          # what the compositor draws (a built-in shape name or a mesh file)
 
 
 @dataclass(frozen=True)
@@ -128,6 +132,8 @@ class Scene:
     fisheye: FisheyeCamera
     fisheye_from_rgbd: np.ndarray    # (4, 4) rigid transform, p_fisheye = T @ p_rgbd
     keyframes: tuple[Keyframe, ...]
+    sensor_effects: SensorEffects | None = None  # None = ideal cameras (probeless.scene.effects_spec)
+    given: Given | None = None                   # None = the pipeline is told the truth
 
     @property
     def duration(self) -> float:

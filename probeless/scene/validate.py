@@ -49,6 +49,20 @@ def check_scene(scene: Scene, top: Where, doc: dict) -> None:
     if len({o.id for o in scene.virtual_objects}) != len(scene.virtual_objects):
         raise top.child("virtual_objects", doc).error("virtual object ids must be unique")
     _check_trajectory(scene, top.child("trajectory", doc).child("keyframes", doc["trajectory"]))
+    if scene.given is not None:
+        _check_given(scene, top.child("given", doc))
+
+
+def _check_given(scene: Scene, where: Where) -> None:
+    """The given block resolves (valid perturbed floorplan, loadable files) and keeps fisheye stamps >= 0."""
+    from probeless.scene.given import given_rig  # noqa: PLC0415 (avoid an import cycle)
+    from probeless.scene.rig import fisheye_model  # noqa: PLC0415
+
+    given_rig(scene.given, scene.floorplan, scene.ceiling_height, scene.fisheye_from_rgbd,
+              fisheye_model(scene).to_camera_info("fisheye"), where=f"{where.file}: {where.path}")
+    if scene.fisheye.time_offset_s + scene.given.clock_offset_s < 0:
+        raise where.error(f"clock_offset_s {scene.given.clock_offset_s} makes the first fisheye stamp negative "
+                          f"(rig.fisheye.time_offset_s is {scene.fisheye.time_offset_s})")
 
 
 def _check_floorplan(poly: np.ndarray, where: Where) -> None:
