@@ -12,7 +12,9 @@ Without a pose the ``initial_pose`` param applies.
 Outputs: ``pose`` (world_from_rgbd, stamped with the RGB-D frame, only for tracked frames),
 ``tracking`` (:class:`TrackingState` for every frame processed) and the model, extracted from
 the TSDF every ``model_period_s`` when it changed: ``model/points`` (coloured points, at most
-``model_max_points``) and/or ``model/mesh`` (``model_output``).
+``model_max_points``, each with ``stamps_ns``: the stamp of the last RGB-D frame fused into its
+voxel block, same clock as the frames; :mod:`probeless.tracking.block_stamps`) and/or ``model/mesh``
+(``model_output``).
 
 Keeping up (2 CPU cores, 30 Hz camera): the node cannot process every frame. Run its
 ``rgb``/``depth`` inputs with ``policy: latest``: it then always works on the newest frame, and
@@ -262,7 +264,8 @@ class DenseSlamNode(Node):
         if out in ("points", "both"):
             with self.ctx.timed("extract_points"):
                 pts, cols = self.slam.extract_pointcloud(self.params.model_max_points)
-            self.ctx.publish("model/points", PointCloud(header, pts, quantize8(cols)))  # sRGB values 0..1
+                stamps = self.slam.fusion_stamps(pts)
+            self.ctx.publish("model/points", PointCloud(header, pts, quantize8(cols), stamps_ns=stamps))  # sRGB 0..1
         if out in ("mesh", "both"):
             with self.ctx.timed("extract_mesh"):
                 v, tri, cols = self.slam.extract_mesh()

@@ -7,7 +7,9 @@ the raycast pose, so skipped frames (a node that drops what it cannot process) d
 tracking, and (``depth_weighting``) refined with every point weighted by its depth noise
 (:mod:`.weighted_icp`: Open3D weighs near and far structured-light depth alike). Odometry returns
 ``raycast_from_input``, so ``world_from_input = world_from_raycast @ it`` where
-``world_from_raycast`` is the pose the last raycast was made at.
+``world_from_raycast`` is the pose the last raycast was made at. Each integration records its
+frame's stamp on the voxel blocks it touched (:mod:`.block_stamps`), so extracted points and
+vertices can say when they were last fused (:meth:`DenseSlam.fusion_stamps`).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from typing import Any, Callable
 import numpy as np
 
 from probeless.errors import ProbelessError
+from probeless.tracking.block_stamps import BlockStamps
 from probeless.tracking.model_extract import extract_mesh, extract_pointcloud, extraction_threshold
 from probeless.tracking.slam_input import prepare_frame
 from probeless.tracking.slam_math import motion, open3d_message, predict_pose, raycast_pose, scaled_K
@@ -83,6 +86,9 @@ class DenseSlam:
         self.since_good = 0             # frames since the last good one
         self.calls = 0                  # frames fed (the time base without stamps)
         self.good: deque = deque(maxlen=2)  # (time, pose) of the last good frames, for the motion prediction
+        self.block_stamps = BlockStamps(params.voxel_size, params.block_resolution)  # last fusion per voxel block
+        self.stamp = 0                  # the current frame's stamp (stamp_ns, else the call count)
+        self.fused_stamp = 0            # stamp of the last frame integrated
 
     def release(self) -> None:
         """Free the Open3D model and frames now. Open3D checks for unfreed memory when the process
@@ -174,7 +180,10 @@ class DenseSlam:
         if self.tracked % p.integrate_every == 0:
             with self._stage("integrate", costs):
                 self.model.integrate(self.input, depth_scale, p.depth_max, p.trunc_voxel_multiplier)
+                # the blocks this integration updated (Open3D keeps them for the raycast): < 1 ms
+                self.block_stamps.touch(self.model.frustum_block_coords.cpu().numpy(), self.stamp)
             self.integrated += 1
+            self.fused_stamp = self.stamp
         if self.tracked % p.raycast_every == 0:
             with self._stage("raycast", costs):
                 if p.raycast_shift:
@@ -188,10 +197,12 @@ class DenseSlam:
              stamp_ns: int | None = None) -> StepResult:
         """Track one frame and update the model (see the module docstring); never raises on bad data.
 
-        ``stamp_ns`` (capture time) lets the motion prediction account for frames skipped in between;
-        without it frames are taken as equally spaced."""
+        ``stamp_ns`` (capture time) lets the motion prediction account for frames skipped in between
+        and stamps the voxel blocks the frame is fused into; without it frames are taken as equally
+        spaced and the call count stands in for the stamp."""
         self.calls += 1
-        t = float(stamp_ns) if stamp_ns is not None else float(self.calls)
+        self.stamp = int(stamp_ns) if stamp_ns is not None else self.calls
+        t = float(self.stamp)
         costs: dict[str, float] = {}
         with self._stage("prepare", costs):
             why = self._prepare(rgb, depth_uint16, float(depth_scale))
@@ -219,6 +230,15 @@ class DenseSlam:
         """(points (N, 3) float32 [m, world], colours (N, 3) float32 0..1), at most ``max_points``."""
         pts, cols = extract_pointcloud(self.model, self.extraction_threshold(), max_points)
         return self._to_world(pts), cols
+
+    def fusion_stamps(self, points_world: np.ndarray) -> np.ndarray:
+        """(N,) int64: when each point (N, 3) [m, world] of the extracted model was last fused, i.e. the
+        stamp of the last frame integrated into its voxel block (:mod:`.block_stamps`; the frames' clock,
+        or the call count without stamps). Points in no integrated block get the last fused stamp."""
+        G = self.grid_from_world
+        pts = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
+        grid = pts if np.array_equal(G, np.eye(4)) else pts @ G[:3, :3].T
+        return self.block_stamps.lookup(grid, default=self.fused_stamp)
 
     def _to_world(self, pts: np.ndarray) -> np.ndarray:
         G = self.grid_from_world

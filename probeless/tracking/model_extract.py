@@ -6,7 +6,9 @@ import numpy as np
 
 
 def extraction_threshold(integrated: int) -> float:
-    """Voxel weight a surface needs to be extracted: 3 observations, fewer while the model is young."""
+    """Weight threshold of the extraction: 3, less while the model is young. Open3D keeps the voxels whose
+    weight exceeds it (strictly: 3 integrations of a surface give no points at threshold 3, asserted in
+    tests/tracking/test_block_stamps.py), so a surface needs 4 observations, 2 after one frame."""
     return float(max(1, min(3, integrated)))
 
 

@@ -301,6 +301,10 @@ def test_node_publishes_poses_states_model_and_trajectory(tmp_path):
     np.testing.assert_allclose(poses[0].target_from_source, gt[poses[0].header.stamp_ns])  # initial pose input
     cloud, mesh = ctx.outputs("model/points")[-1], ctx.outputs("model/mesh")[-1]
     assert len(cloud) == 3000 and cloud.colors.dtype == np.uint8 and len(mesh.triangles) > 1000
+    # per-point fusion stamps: frame stamps (every 2nd tracked frame is integrated), the newest the last fused one
+    fused = [p.header.stamp_ns for p in poses][::2]
+    assert len(cloud.stamps_ns) == len(cloud) and set(np.unique(cloud.stamps_ns)) <= set(fused)
+    assert cloud.stamps_ns.max() == fused[-1]  # (10 slow frames: the last one covers the whole model)
     stamps, est = read_tum(traj)
     assert stamps.tolist() == [p.header.stamp_ns for p in poses]
     np.testing.assert_allclose(est, [p.target_from_source for p in poses], atol=1e-8)
