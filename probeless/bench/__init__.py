@@ -13,15 +13,16 @@ from __future__ import annotations
 BENCHMARKS: dict[str, tuple[str, str]] = {
     "bus": ("probeless.bench.bus", "our node-to-node bus vs raw pyzmq PUB/SUB: throughput, latency, loss"),
     "bag": ("probeless.bench.bag", "recording: recorder vs raw mcap writer, replay timing, lockstep determinism"),
-    "sensors": ("probeless.bench.sensors", "synthetic rig render rate, LUT vs per-pixel undistortion"),
+    "sensors": ("probeless.bench.sensors", "synthetic rig render rate, undistortion cost and vs cv2.omnidir"),
     "undistort": ("probeless.bench.undistort",
-                  "fisheye undistortion: precomputed LUT + cv2.remap vs per-pixel model evaluation"),
+                  "fisheye undistortion: table build and remap cost, vs cv2.omnidir.initUndistortRectifyMap"),
     "slam": ("probeless.bench.slam", "dense SLAM: step costs, sustained node rate, node overhead"),
     "coarse": ("probeless.bench.coarse", "coarse room model: occlusion, texture update, brightness (vectorised "
-                                         "vs serial), inpainting, read-back"),
+                                         "vs a compiled serial loop; sampled vs all texels), inpainting, read-back"),
     "pipeline": ("probeless.bench.pipeline", "full pipeline: per-stage costs, latency, frame rate, drops"),
-    "dense": ("probeless.bench.dense", "dense model cubemap rendering vs Open3D raycast"),
-    "pano": ("probeless.bench.pano", "360° video IBL: ITMO, diffuse map, compositing, brute force side by side"),
+    "dense": ("probeless.bench.dense", "dense model cubemap rendering (point extraction included) vs Open3D raycast"),
+    "pano": ("probeless.bench.pano", "360° video IBL: ITMO, diffuse map vs exact FFT convolution, glossy at equal "
+                                     "cost, compositing"),
     "hdr": ("probeless.bench.hdr", "HDR expansion of a 0.8M-point cloud end to end (paper 001, Table 1)"),
     "pbgi": ("probeless.bench.pbgi",
              "PBGI: BSH build, Classic / Mipmapped / Hybrid time and memory (paper 001, Table 3)"),

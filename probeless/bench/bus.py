@@ -7,14 +7,16 @@ For each payload (640x480x3 and 1280x1024x3 uint8 images) and each repetition, t
   ``bench_source`` -> ``bench_sink`` (input policy ``block``, queue_size 8), two node processes
   over ipc://, messages are ``sensor/Image``.
 * **raw** (:mod:`probeless.bench.bus_raw`): two plain processes with pyzmq: XPUB (XPUB_NODROP=1,
-  same SNDHWM) -> SUB (same RCVHWM as a ``block`` input), ipc://, frames ``[topic, 17-byte header,
-  payload]``, payload sent with ``copy=False``.
+  same SNDHWM) -> SUB, ipc://, frames ``[topic, 17-byte header, payload]``, payload sent with
+  ``copy=False``. Equal buffering: the raw SUB's RCVHWM is the whole buffer of our ``block`` input
+  (its SUB socket's RCVHWM + its queue_size, :func:`~probeless.bench.bus_raw.subscriber_buffer`).
 
 Each run has two phases: a back-to-back burst (throughput = (n-1) / (last - first receive time) at
 the receiver, so process start-up is excluded) and, after a short pause, a paced stream (one-way
 latency = receive wall time - publish wall time, both ``time.time_ns()`` on this machine). Loss is
 checked on both sides: every message counted, seqs contiguous. Figures are medians over the
-repetitions (5, ``--quick``: 1); ``throughput_ratio`` = ours / raw of the medians,
+repetitions (5, ``--quick``: 1); ``throughput_ratio`` = ours / raw of the medians (reference named in
+``throughput_reference``),
 ``latency_added_*_ms`` = ours - raw.
 
 ``--json`` prints exactly one JSON object on stdout; progress and graph logs go to stderr.
@@ -33,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from probeless.bench.bus_raw import GAP_S, run_raw
+from probeless.bench.bus_raw import GAP_S, run_raw, subscriber_buffer
 from probeless.bench.common import emit, finite_median, log, rounded
 
 GOALS = {"throughput_ratio_min": 0.8, "latency_added_p50_ms_max": 0.3}
@@ -145,7 +147,8 @@ def run_bench(quick: bool = False, reps: int | None = None) -> dict:
                 for side in order:
                     tag = f"{cfg[0]}-{rep}"
                     t0 = time.monotonic()
-                    res = (run_ours if side == "ours" else run_raw)(cfg, tmp, tag)
+                    res = (run_ours(cfg, tmp, tag) if side == "ours"
+                           else run_raw(cfg, tmp, tag, subscriber_buffer(QUEUE_SIZE)))
                     fig = analyze(res, cfg)
                     runs[cfg[0]][side].append(fig)
                     log(f"rep {rep + 1}/{reps} {cfg[0]:>11} {side:>4}: {fig['msgs_per_s']:8.1f} msg/s "
@@ -170,7 +173,13 @@ def run_bench(quick: bool = False, reps: int | None = None) -> dict:
         meets &= entry["meets_goals"]
         lossless &= ours["lossless"] and raw["lossless"]
         result["payloads"][name] = entry
+    buffer = subscriber_buffer(QUEUE_SIZE)
     result.update(goals=dict(GOALS), meets_goals=bool(meets), lossless=bool(lossless),
+                  throughput_reference="raw pyzmq XPUB(NODROP) -> SUB, same payloads, same ipc:// transport, "
+                                       "same send and receive buffers",
+                  subscriber_buffer_messages={"ours": buffer, "raw": buffer,
+                                              "ours_split": f"SUB RCVHWM {buffer - QUEUE_SIZE} + input queue "
+                                                            f"{QUEUE_SIZE}", "raw_split": f"SUB RCVHWM {buffer}"},
                   settings={"transport": "ipc", "policy": "block", "queue_size": QUEUE_SIZE,
                             "raw": "XPUB(NODROP) -> SUB, [topic, header, payload], payload copy=False",
                             "throughput": "(n-1) / (last - first receive) of a back-to-back burst",

@@ -1,6 +1,10 @@
 """The raw side of ``probeless bench bus``: two plain pyzmq processes, XPUB (XPUB_NODROP=1, the bus's SNDHWM)
--> SUB (the RCVHWM of a ``block`` input) over ipc://, frames ``[topic, 17-byte header, payload]``, the
-payload sent with ``copy=False``; the same two phases (burst, then paced) as the bus graph."""
+-> SUB over ipc://, frames ``[topic, 17-byte header, payload]``, the payload sent with ``copy=False``; the
+same two phases (burst, then paced) as the bus graph.
+
+Equal buffering: our ``block`` input holds up to ``BLOCK_RECV_HWM`` messages in its SUB socket plus
+``queue_size`` in its input queue; the raw SUB gets one RCVHWM of the same total
+(:func:`subscriber_buffer`), so neither side can absorb a burst the other cannot."""
 
 from __future__ import annotations
 
@@ -18,6 +22,14 @@ GAP_S = 0.2
 RUN_TIMEOUT_S = 300.0
 RAW_HEADER = struct.Struct("<qqB")  # seq, stamp_ns, phase (0 = throughput, 1 = latency)
 PHASES = ("tput", "lat")
+
+
+def subscriber_buffer(queue_size: int) -> int:
+    """Messages a ``block`` input of ``queue_size`` can hold (SUB socket RCVHWM + input queue): the raw
+    subscriber's RCVHWM, so both sides buffer equally."""
+    from probeless.runtime.transport import BLOCK_RECV_HWM
+
+    return BLOCK_RECV_HWM + int(queue_size)
 
 
 def _raw_pub(a: dict) -> None:
@@ -66,11 +78,9 @@ def _raw_pub(a: dict) -> None:
 def _raw_sub(a: dict) -> None:
     import zmq
 
-    from probeless.runtime.transport import BLOCK_RECV_HWM
-
     ctx = zmq.Context()
     s = ctx.socket(zmq.SUB)
-    s.setsockopt(zmq.RCVHWM, BLOCK_RECV_HWM)
+    s.setsockopt(zmq.RCVHWM, int(a["rcvhwm"]))
     s.setsockopt(zmq.LINGER, 0)
     s.connect(a["endpoint"])
     s.setsockopt(zmq.SUBSCRIBE, a["topic"].encode())
@@ -106,11 +116,12 @@ def _raw_main(arg: str) -> None:
     (_raw_pub if a["role"] == "pub" else _raw_sub)(a)
 
 
-def run_raw(cfg: tuple, tmp: Path, tag: str) -> dict:
+def run_raw(cfg: tuple, tmp: Path, tag: str, rcvhwm: int) -> dict:
+    """One raw run of payload ``cfg`` (name, w, h, burst, paced, rate); the SUB's RCVHWM is ``rcvhwm``."""
     name, w, h, n, m, rate = cfg
     out = tmp / f"raw-{tag}.json"
     common = {"endpoint": f"ipc://{tmp}/raw-{tag}.pub", "topic": "source/image", "width": w, "height": h}
-    roles = [dict(common, role="sub", out=str(out)),
+    roles = [dict(common, role="sub", out=str(out), rcvhwm=int(rcvhwm)),
              dict(common, role="pub", count=n, paced_count=m, rate_hz=rate, gap_s=GAP_S)]
     code = "import sys; from probeless.bench.bus_raw import _raw_main; _raw_main(sys.argv[1])"
     procs = []

@@ -6,13 +6,14 @@ model) are rendered first, outside every timed region. Then, per frame, as ``run
 nodes do it (Δ of frame k against the atlas after frame k-1):
 
 * **read-back**: :meth:`AtlasTexturer.read_packed`, the RGBA8 atlas the texturer publishes;
-* **brightness**, side by side on the same frame and atlas: vectorised :func:`estimate_delta` on
-  all core texels and on a 65536-texel sample (the node's default), and the paper-style serial
-  per-texel loop :func:`estimate_delta_serial` on ``--serial-texels`` K texels, extrapolated per
-  texel to all core texels (a full serial run takes ~10 s per frame at 2048^2). The K texels are
-  every n-th core texel (evenly strided), not the first K: those are one strip of wall just under
-  the ceiling, whose share of observed texels (the texels the loop does real work for) is not the
-  atlas's. The vectorised estimate on the same K texels checks that both compute the same Δ;
+* **brightness**, side by side on the same frame and atlas: vectorised :func:`estimate_delta` on all
+  core texels against its reference, the same estimate as a compiled serial loop
+  (:func:`probeless.bench.coarse_numba.estimate_delta_numba`, numba ``@njit``) over the same texels:
+  ``brightness_speedup`` = numba / vectorised time (``brightness_reference`` names it), with the
+  gate that both give the same Δ from the same texel count. Separately, the node's sampled estimate
+  (65536 texels) against the all-texel one: ``sampled_speedup_vs_all`` = all / sampled time
+  (``_vs_numba_all``: against the compiled loop over all texels), and the error the sample costs
+  (``sampled_error_*``, 0..255 units);
 * **occlusion mask** and **texture update** on the GPU (``CoarseModel.step``'s own timings, each
   ending with ``ctx.finish()``); inpainting runs inside ``step`` with the default
   :class:`IncrementalInpainter` gating, and step time minus those two passes is its amortised cost;
@@ -42,8 +43,9 @@ from probeless.progress import progress, stdout_to_stderr
 SCENE = REPO_ROOT / "launch" / "scenes" / "partition_room.yaml"
 GOALS = {"brightness_speedup_min": 100.0}
 FRAMES, QUICK_FRAMES = 45, 6
-SERIAL_TEXELS, QUICK_SERIAL_TEXELS = 20000, 2000
 SAMPLE_TEXELS = 65536
+BRIGHTNESS_REFERENCE = "estimate_delta_numba: the same estimate as a compiled serial loop (numba @njit), same texels"
+AGREEMENT_GATE = 1e-3  # max |Δ numba - Δ vectorised| [0..255 units]: float32 vs float64 sums
 INPAINT_SCALE = 0.25
 INPAINT_REPS = 3
 WARMUP_FRAMES = 1
@@ -63,30 +65,21 @@ def _ms(fn, *args, **kwargs):
     return out, (time.perf_counter() - t0) * 1e3
 
 
-def strided_subset(index: np.ndarray, k: int) -> np.ndarray:
-    """``k`` (or all, if fewer) flat texel indices spread evenly over ``index``: every n-th one."""
-    step = max(1, len(index) // max(1, k))
-    return index[::step][:k]
-
-
-def brightness_frame(model, source, frame, all_s, sample_s, serial_s, *, full_serial: bool = False) -> dict:
-    """Every brightness estimate of one frame against the current atlas, timed, plus the read-back;
-    ``full_serial`` also times the serial loop over all texels (to check the extrapolation)."""
-    from probeless.coarse.brightness import estimate_delta, estimate_delta_serial
+def brightness_frame(model, source, frame, all_s, sample_s) -> dict:
+    """Every brightness estimate of one frame against the current atlas, timed, plus the read-back."""
+    from probeless.bench.coarse_numba import estimate_delta_numba
+    from probeless.coarse.brightness import estimate_delta
 
     packed, t_read = _ms(model.gpu.read_packed)
     args = (packed[..., :3], packed[..., 3] > 0, model.texmap, frame.image, source.model, frame.world_from_fisheye,
             model.config.fov_deg, source.floorplan)
     (d_all, n_all), t_all = _ms(estimate_delta, *args, sample_idx=all_s)
     (d_smp, _), t_smp = _ms(estimate_delta, *args, sample_idx=sample_s)
-    (d_ser, n_ser), t_ser = _ms(estimate_delta_serial, *args, sample_idx=serial_s)
-    d_sub, n_sub = estimate_delta(*args, sample_idx=serial_s)
-    return {"readback": t_read, "all": t_all, "sampled": t_smp, "serial_subset": t_ser,
-            "serial_all": t_ser * len(all_s.index) / len(serial_s.index), "delta": d_smp, "texels_all": n_all,
-            "sample_error": float(np.abs(d_smp.astype(np.float64) - d_all).max() * 255.0),
-            "serial_diff": float(np.abs(d_ser.astype(np.float64) - d_sub).max() * 255.0),
-            "serial_texels_equal": n_ser == n_sub,
-            "serial_all_measured": _ms(estimate_delta_serial, *args, sample_idx=all_s)[1] if full_serial else None}
+    (d_nb, n_nb), t_nb = _ms(estimate_delta_numba, *args, sample_idx=all_s)
+    return {"readback": t_read, "all": t_all, "sampled": t_smp, "numba_all": t_nb, "delta": d_smp,
+            "texels_all": n_all, "sample_error": float(np.abs(d_smp.astype(np.float64) - d_all).max() * 255.0),
+            "numba_diff": float(np.abs(d_nb.astype(np.float64) - d_all).max() * 255.0),
+            "numba_texels_equal": n_nb == n_all}
 
 
 def render(source, n: int, show_progress: bool) -> list:
@@ -105,8 +98,7 @@ def measure(model, source, rendered: list, samples: tuple, show_progress: bool) 
     lay = model.layout
     with progress(len(rendered), f"coarse model, {lay.width}x{lay.height} atlas", enabled=show_progress) as tick:
         for k, frame in enumerate(rendered):
-            last = k == len(rendered) - 1
-            rec = brightness_frame(model, source, frame, *samples, full_serial=last) if k > 0 else None
+            rec = brightness_frame(model, source, frame, *samples) if k > 0 else None
             delta = rec["delta"] if rec else np.zeros(3, np.float32)
             _, t_step = _ms(model.step, frame.image, source.model, frame.world_from_fisheye, delta, frame.t_s)
             step_ms.append(t_step)
@@ -116,49 +108,43 @@ def measure(model, source, rendered: list, samples: tuple, show_progress: bool) 
 
 
 def brightness_summary(b: list[dict], timings: dict, samples: tuple) -> dict:
-    """Speedups, extrapolation check and estimate agreement of the measured frames' records ``b``."""
-    all_s, sample_s, serial_s = samples
+    """Ratios against the named references, estimate agreement (the gate) and sampling error of ``b``."""
+    all_s, sample_s = samples
 
     def col(key: str) -> list:
         return [r[key] for r in b]
 
-    serial_all = timings["brightness_serial_all_extrapolated"]["mean"]
-    errors, last = col("sample_error"), b[-1]
+    errors, t = col("sample_error"), {k: timings[f"brightness_{k}"]["mean"] for k in ("all", "sampled", "numba_all")}
+    agree = max(col("numba_diff"))
     return {
-        "all_texels": len(all_s.index), "sample_texels": len(sample_s.index), "serial_texels": len(serial_s.index),
-        "serial_subset": "every n-th core texel (evenly strided), n = all_texels // serial_texels",
-        "serial_extrapolated": True,
-        "serial_extrapolation": "serial time on serial_texels texels * all_texels / serial_texels",
-        "serial_ms_per_texel": timings["brightness_serial_subset"]["mean"] / len(serial_s.index),
-        # the last frame's serial loop over all texels, measured, against its extrapolation and vectorised time
-        "last_frame_serial_all_measured_ms": last["serial_all_measured"],
-        "last_frame_serial_all_extrapolated_ms": last["serial_all"], "last_frame_vectorised_all_ms": last["all"],
-        "last_frame_speedup_measured": last["serial_all_measured"] / last["all"],
-        "texels_used_mean": float(np.mean(col("texels_all"))),
-        "brightness_speedup": serial_all / timings["brightness_all"]["mean"],
-        "brightness_sampled_speedup": serial_all / timings["brightness_sampled"]["mean"],
-        "speedup_definition": "brightness_serial_all_extrapolated.mean / brightness_all.mean (sampled: "
-                              "/ brightness_sampled.mean)",
-        "serial_vs_vectorised_max_abs_diff": max(col("serial_diff")),
-        "serial_vs_vectorised_texels_equal": all(col("serial_texels_equal")),
+        "all_texels": len(all_s.index), "sample_texels": len(sample_s.index),
+        "brightness_reference": BRIGHTNESS_REFERENCE, "reference_texels": len(all_s.index),
+        "brightness_speedup": t["numba_all"] / t["all"],
+        "speedup_definition": "brightness_numba_all.mean / brightness_all.mean (same texels, same frames)",
+        "numba_vs_vectorised_max_abs_diff": agree,
+        "numba_vs_vectorised_texels_equal": all(col("numba_texels_equal")),
+        "agreement_gate": {"max_abs_diff_max": AGREEMENT_GATE, "texels_equal": True},
+        "agreement_gate_met": bool(agree <= AGREEMENT_GATE and all(col("numba_texels_equal"))),
+        "sampled_reference": "estimate_delta over all core texels (vectorised), same frame",
+        "sampled_speedup_vs_all": t["all"] / t["sampled"],
+        "sampled_speedup_vs_numba_all": t["numba_all"] / t["sampled"],
         "sampled_error_max": max(errors), "sampled_error_mean": float(np.mean(errors)),
+        "texels_used_mean": float(np.mean(col("texels_all"))),
         "units": "Δ differences in 0..255 camera units, max over channels and frames"}
 
 
 def run_bench(*, atlas_size: int = 2048, frames: int = FRAMES, scene: str | Path = SCENE,
-              serial_texels: int = SERIAL_TEXELS, sample_texels: int = SAMPLE_TEXELS,
-              show_progress: bool = True) -> dict:
+              sample_texels: int = SAMPLE_TEXELS, show_progress: bool = True) -> dict:
     """Render ``frames`` fisheye frames, then time every stage per frame (module docstring)."""
-    from probeless.coarse.brightness import BrightnessSample, draw_sample
+    from probeless.coarse.brightness import draw_sample
     from probeless.coarse.frames import scene_source
     from probeless.coarse.inpaint import inpaint_atlas
     from probeless.coarse.model import CoarseConfig, CoarseModel
     from probeless.errors import SchemaError
 
-    if frames < WARMUP_FRAMES + 1 or serial_texels < 1 or sample_texels < 1 or atlas_size < 16:
-        raise SchemaError(f"bench coarse: need --frames >= {WARMUP_FRAMES + 1}, --serial-texels >= 1, "
-                          f"sample_texels >= 1 and --atlas-size >= 16, got {frames}, {serial_texels}, "
-                          f"{sample_texels}, {atlas_size}")
+    if frames < WARMUP_FRAMES + 1 or sample_texels < 1 or atlas_size < 16:
+        raise SchemaError(f"bench coarse: need --frames >= {WARMUP_FRAMES + 1}, sample_texels >= 1 and "
+                          f"--atlas-size >= 16, got {frames}, {sample_texels}, {atlas_size}")
     t_start = time.monotonic()
     source = scene_source(scene)
     rendered = render(source, min(frames, source.count), show_progress)
@@ -167,10 +153,7 @@ def run_bench(*, atlas_size: int = 2048, frames: int = FRAMES, scene: str | Path
     config = CoarseConfig(atlas_size=atlas_size, fov_deg=source.texture_fov_deg, inpaint_scale=INPAINT_SCALE)
     model = CoarseModel(source.floorplan, source.ceiling_height, config, ctx=source.rig.renderer.ctx)
     all_s = draw_sample(model.texmap)
-    sub = strided_subset(all_s.index, serial_texels)
-    samples = (all_s, draw_sample(model.texmap, sample_texels, seed=0),
-               BrightnessSample(sub, model.texmap.position.reshape(-1, 3)[sub],
-                                model.texmap.normal.reshape(-1, 3)[sub], all_s.shape))
+    samples = (all_s, draw_sample(model.texmap, sample_texels, seed=0))
     per, step_ms = measure(model, source, rendered, samples, show_progress)
     rgb, seen = model.gpu.read_atlas()
     observed = seen >= 0
@@ -183,13 +166,13 @@ def run_bench(*, atlas_size: int = 2048, frames: int = FRAMES, scene: str | Path
     w, tm, b = WARMUP_FRAMES, model.timings_ms, per[WARMUP_FRAMES:]
     rest = [s - o - t for s, o, t in zip(step_ms[w:], tm["occlusion"][w:], tm["texture"][w:])]
     timings = {"occlusion": stats(tm["occlusion"][w:]), "texture_update": stats(tm["texture"][w:]),
-               **{f"brightness_{k}": stats([r[k] for r in b]) for k in ("all", "sampled", "serial_subset")},
-               "brightness_serial_all_extrapolated": stats([r["serial_all"] for r in b]),
+               **{f"brightness_{k}": stats([r[k] for r in b]) for k in ("all", "sampled", "numba_all")},
                "inpaint_amortised": stats(rest), "inpaint_full": stats(full),
                "readback_rgba8": stats([r["readback"] for r in b])}
     brightness = brightness_summary(b, timings, samples)
     goal = GOALS["brightness_speedup_min"]
-    goals_met = {k: bool(brightness[k] >= goal) for k in ("brightness_speedup", "brightness_sampled_speedup")}
+    goals_met = {"brightness_speedup": bool(brightness["brightness_speedup"] >= goal),
+                 "agreement_gate": brightness["agreement_gate_met"]}
     lay = model.layout
     result = {
         "scene": str(scene), "frames": len(rendered), "warmup_frames": w,
@@ -220,16 +203,14 @@ def print_table(r: dict) -> None:
     for name, s in r["timings_ms"].items():
         cells = " ".join(f"{s[k]:9.2f}" if s[k] is not None else f"{'-':>9s}" for k in ("mean", "p50", "p95"))
         print(f"  {name:36s} {cells} {s['n']:4d}")
-    print(f"  brightness: serial loop on {b['serial_texels']} strided texels ({b['serial_ms_per_texel'] * 1e3:.2f} "
-          f"us/texel) extrapolated to {b['all_texels']}; speedup vectorised all texels {b['brightness_speedup']:.0f}x, "
-          f"sampled ({b['sample_texels']}) {b['brightness_sampled_speedup']:.0f}x "
-          f"(goal >= {r['goals']['brightness_speedup_min']:.0f}x)")
-    print(f"  last frame: serial loop over all texels measured {b['last_frame_serial_all_measured_ms']:.0f} ms, "
-          f"extrapolated {b['last_frame_serial_all_extrapolated_ms']:.0f} ms, vectorised "
-          f"{b['last_frame_vectorised_all_ms']:.0f} ms -> {b['last_frame_speedup_measured']:.0f}x measured")
-    print(f"  serial vs vectorised |ΔΔ| max {b['serial_vs_vectorised_max_abs_diff']} (same texels: "
-          f"{b['serial_vs_vectorised_texels_equal']}); sampled vs all-texel error max {b['sampled_error_max']:.4f}, "
-          f"mean {b['sampled_error_mean']:.4f} (0..255)")
+    t = r["timings_ms"]
+    print(f"  brightness on all {b['all_texels']} core texels: vectorised {t['brightness_all']['mean']:.1f}"
+          f" ms vs compiled serial loop (numba) {t['brightness_numba_all']['mean']:.1f} ms -> "
+          f"brightness_speedup {b['brightness_speedup']:.2f}x (goal >= {r['goals']['brightness_speedup_min']:.0f}x); "
+          f"agreement |ΔΔ| max {b['numba_vs_vectorised_max_abs_diff']:.2e} (gate met: {b['agreement_gate_met']})")
+    print(f"  sampled ({b['sample_texels']} texels) vs all texels: {b['sampled_speedup_vs_all']:.1f}x faster than "
+          f"vectorised, {b['sampled_speedup_vs_numba_all']:.1f}x than the compiled loop; error "
+          f"max {b['sampled_error_max']:.4f}, mean {b['sampled_error_mean']:.4f} (0..255)")
     print(f"  inpainting: {r['inpaint']['incremental_runs']} incremental run(s), first "
           f"{r['inpaint']['first_run_ms']:.0f} ms; meets_goals={r['meets_goals']} {r['goals_met']}; "
           f"{r['duration_s']:.0f} s "
@@ -237,16 +218,14 @@ def print_table(r: dict) -> None:
 
 
 def main(json_out: bool = False, quick: bool = False, *, atlas_size: int = 2048, frames: int | None = None,
-         scene: str | Path | None = None, serial_texels: int | None = None, sample_texels: int = SAMPLE_TEXELS,
-         show_progress: bool = True) -> int:
+         scene: str | Path | None = None, sample_texels: int = SAMPLE_TEXELS, show_progress: bool = True) -> int:
     """Run the benchmark; a table, or exactly one JSON object with ``json_out``. 0 always (figures, not a test).
-    None for ``frames``, ``scene``, ``serial_texels``: the defaults (``quick``: fewer frames and serial texels)."""
+    None for ``frames``, ``scene``: the defaults (``quick``: fewer frames)."""
     scene = scene or SCENE
     frames = frames or (QUICK_FRAMES if quick else FRAMES)
-    serial_texels = serial_texels or (QUICK_SERIAL_TEXELS if quick else SERIAL_TEXELS)
     with stdout_to_stderr():
-        result = run_bench(atlas_size=atlas_size, frames=frames, scene=scene, serial_texels=serial_texels,
-                           sample_texels=sample_texels, show_progress=show_progress)
+        result = run_bench(atlas_size=atlas_size, frames=frames, scene=scene, sample_texels=sample_texels,
+                           show_progress=show_progress)
     emit(result, json_out, print_table)
     return 0
 
@@ -257,13 +236,10 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--frames", type=int, help=f"fisheye frames, the first a warm-up (default {FRAMES}, "
                                                f"--quick {QUICK_FRAMES})")
     ap.add_argument("--scene", help="scene file (default launch/scenes/partition_room.yaml)")
-    ap.add_argument("--serial-texels", type=int, help=f"texels the serial brightness loop is timed on (default "
-                                                      f"{SERIAL_TEXELS}, --quick {QUICK_SERIAL_TEXELS})")
 
 
 def run(ns: argparse.Namespace) -> int:
-    return main(ns.json, ns.quick, atlas_size=ns.atlas_size, frames=ns.frames, scene=ns.scene,
-                serial_texels=ns.serial_texels)
+    return main(ns.json, ns.quick, atlas_size=ns.atlas_size, frames=ns.frames, scene=ns.scene)
 
 
 if __name__ == "__main__":

@@ -1,19 +1,23 @@
-"""``probeless bench undistort``: fisheye undistortion by precomputed LUT + cv2.remap vs direct per-pixel model
-evaluation (also part of ``probeless bench sensors``).
+"""``probeless bench undistort``: what fisheye undistortion costs, and the same mapping by OpenCV
+(also part of ``probeless bench sensors``).
 
-One synthetic 1024x1024 rgb8 fisheye frame from an OCamCalib source (the real sample calibration,
-centred on the frame) is converted to the runtime model (ideal omnidir, xi = 1, 185 degrees,
-1024x1024). Both paths run side by side in this process, alternating, and the median of several
-repeats is reported:
+1. **The rig's case**: one synthetic 1024x1024 rgb8 frame from an OCamCalib source (the real sample
+   calibration, centred on the frame) into the runtime model (ideal omnidir, xi = 1, 185 degrees,
+   1024x1024): the one-off table build (``lut_build_ms``) and the per-frame ``cv2.remap`` through it
+   (``remap_ms``), absolute; ``max_px_diff``: the largest distance between the positions the remap
+   really samples and the float64 model positions [px] (goal <= 0.5) over the ``max_px_diff_pixels``
+   destination pixels inside the source; ``mean_abs_diff``: mean |LUT output - per-pixel evaluation|.
+2. **Against the reference** (``undistort_reference``): OpenCV cannot read an OCamCalib model, so the
+   same kind of mapping from a Mei source (unified model with radial-tangential distortion, xi = 1.1)
+   into the same runtime model (xi = 1, 185 degrees, 1024x1024), both ways: ours (:func:`build_lut`
+   + :func:`remap`) and ``cv2.omnidir.initUndistortRectifyMap`` (RECTIFY_STEREOGRAPHIC: the xi = 1
+   model, with the axes turned and the focal halved to our convention, :func:`cv2_stereographic_maps`)
+   + ``cv2.remap``. Both tables and both outputs are compared (the gate: ``map_agreement_px`` <=
+   ``MAP_GATE_PX``, ``output_max_abs_diff`` <= 1 level); ``undistort_build_ratio`` = our build /
+   OpenCV's, ``undistort_remap_ratio`` = our per-frame remap / OpenCV's.
 
-* ``direct_ms``: :func:`undistort_direct`: both models evaluated for all pixels, then cv2.remap;
-* ``lut_ms``: :func:`remap` through the float32 LUT built once (``lut_build_s``);
-* ``max_px_diff``: the largest distance between the positions the LUT remap really samples and the
-  direct float64 model positions [px] (goal <= 0.5), over the ``max_px_diff_pixels`` destination
-  pixels that sample the source interior; ``mean_abs_diff``: mean |LUT output - direct output|
-  [8-bit levels] over the whole frame.
-
-Without ``--json`` the figures are printed as indented JSON; ``--quick``: fewer repeats.
+Times are medians of several runs. Without ``--json`` the figures are printed as indented JSON;
+``--quick``: fewer repeats.
 """
 
 from __future__ import annotations
@@ -35,6 +39,13 @@ from probeless.paths import SHARED_DATA
 
 OCAM_FILE = SHARED_DATA / "fisheye" / "ocamcalib" / "calib_results_fisheye.txt"
 SIZE = 1024
+MAP_GATE_PX = 1e-3  # max |our table - OpenCV's table| [px] over destination pixels inside the source
+MEI_K = np.array([[330.0, 0.0, 511.5], [0.0, 331.0, 512.3], [0.0, 0.0, 1.0]])
+MEI_XI, MEI_D = 1.1, np.array([-0.25, 0.07, 2e-4, -1e-4])
+UNDISTORT_REFERENCE = ("cv2.omnidir.initUndistortRectifyMap (RECTIFY_STEREOGRAPHIC, float32 maps) + cv2.remap, "
+                       "same Mei source, same 1024x1024 xi=1 output")
+# our camera axes (x right, y down, z forward) from OpenCV's stereographic frame (centre ray -y, image y = +z)
+_STEREO_R = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
 def ocam_source(size: int = SIZE) -> OcamModel:
@@ -66,56 +77,111 @@ def effective_positions(lut: tuple[np.ndarray, np.ndarray], src: CameraModel) ->
     return remap(np.stack([u, v], axis=-1), lut).astype(np.float64)
 
 
-def _time_ms(fn) -> float:
-    t0 = time.perf_counter()
-    fn()
-    return (time.perf_counter() - t0) * 1e3
-
-
-def measure(quick: bool = False) -> dict:
-    """Measure LUT vs direct undistortion side by side; see the module docstring for the keys."""
-    repeats = 3 if quick else 9
-    src = ocam_source()
-    dst = OmnidirModel.from_fov(SIZE, SIZE, 185.0, xi=1.0)
-    frame = synthetic_frame(src)
-
-    builds = []
-    for _ in range(1 if quick else 3):
+def _median_ms(fn, repeats: int) -> float:
+    """Median wall time of ``repeats`` calls of ``fn`` [ms]."""
+    times = []
+    for _ in range(max(1, repeats)):
         t0 = time.perf_counter()
-        lut = build_lut(src, dst)
-        builds.append(time.perf_counter() - t0)
+        fn()
+        times.append((time.perf_counter() - t0) * 1e3)
+    return statistics.median(times)
 
-    remap(frame, lut), undistort_direct(frame, src, dst)  # warm-up (cv2 thread pool, caches)
-    direct, lut_times = [], []
-    for _ in range(repeats):
-        direct.append(_time_ms(lambda: undistort_direct(frame, src, dst)))
-        lut_times.append(statistics.median(_time_ms(lambda: remap(frame, lut)) for _ in range(5)))
 
+def _timed_ms(fn, *args):
+    """(``fn(*args)``, its wall time [ms])."""
+    t0 = time.perf_counter()
+    out = fn(*args)
+    return out, (time.perf_counter() - t0) * 1e3
+
+
+def _paired_median_ms(fn_a, fn_b, repeats: int) -> tuple[float, float]:
+    """Median wall times [ms] of ``fn_a`` and ``fn_b`` called alternately ``repeats`` times each (load drift
+    hits both alike)."""
+    a, b = [], []
+    for _ in range(max(1, repeats)):
+        a.append(_median_ms(fn_a, 1))
+        b.append(_median_ms(fn_b, 1))
+    return statistics.median(a), statistics.median(b)
+
+
+def cv2_stereographic_maps(src: OmnidirModel, dst: OmnidirModel) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV's table for ``src`` (Mei: K, xi, D) -> ``dst`` (ideal omnidir, xi = 1, no skew), float32.
+
+    RECTIFY_STEREOGRAPHIC is the xi = 1 projection with m = 2 x / (1 + z) (ours: x / (1 + z)) and its
+    centre ray along -y: hence the halved focal lengths and the rotation :data:`_STEREO_R`."""
+    if abs(dst.xi - 1.0) > 1e-12 or len(dst.D) or dst.K[0, 1] != 0:
+        raise ValueError("cv2_stereographic_maps: the destination must be an ideal omnidir model, xi = 1, no skew")
+    P = np.array(dst.K, np.float64)
+    P[0, 0] /= 2.0
+    P[1, 1] /= 2.0
+    return cv2.omnidir.initUndistortRectifyMap(np.asarray(src.K, np.float64), np.asarray(src.D, np.float64)
+                                               .reshape(1, 4), np.array([float(src.xi)]), _STEREO_R, P,
+                                               (dst.width, dst.height), cv2.CV_32FC1,
+                                               cv2.omnidir.RECTIFY_STEREOGRAPHIC)
+
+
+def rig_case(repeats: int) -> dict:
+    """Part 1 of the module doc: the OCam source into the runtime model, absolute costs and sampling."""
+    src, dst = ocam_source(), OmnidirModel.from_fov(SIZE, SIZE, 185.0, xi=1.0)
+    frame = synthetic_frame(src)
+    builds = [_timed_ms(build_lut, src, dst) for _ in range(max(1, repeats // 3))]
+    lut = builds[-1][0]
+    remap(frame, lut)  # warm-up (cv2 thread pool, caches)
     exact = sample_positions(src, dst)
     used = effective_positions(lut, src)
     interior = ((exact >= 0) & (exact <= np.array([src.width - 1, src.height - 1]))).all(axis=-1)
     diff = np.linalg.norm(used - exact, axis=-1)[interior]
     out_lut = remap(frame, lut).astype(np.float64)
-    out_direct = undistort_direct(frame, src, dst).astype(np.float64)
+    return {"source": "ocam (shared sample calibration, centred)", "target": "omnidir xi=1 fov=185 deg, 1024x1024",
+            "lut_build_ms": statistics.median(t for _, t in builds),
+            "remap_ms": _median_ms(lambda: remap(frame, lut), 5 * repeats),
+            "max_px_diff": float(diff.max()), "max_px_diff_pixels": int(interior.sum()),
+            "mean_abs_diff": float(np.abs(out_lut - undistort_direct(frame, src, dst)).mean())}
 
-    direct_ms, lut_ms = statistics.median(direct), statistics.median(lut_times)
-    return {
-        "frame": f"{SIZE}x{SIZE} rgb8",
-        "source": "ocam (shared sample calibration, centred)",
-        "target": "omnidir xi=1 fov=185 deg, 1024x1024",
-        "lut_build_s": statistics.median(builds),
-        "direct_ms": direct_ms,
-        "lut_ms": lut_ms,
-        "undistort_speedup": direct_ms / lut_ms,
-        "max_px_diff": float(diff.max()),
-        "max_px_diff_pixels": int(interior.sum()),
-        "mean_abs_diff": float(np.abs(out_lut - out_direct).mean()),
-        "repeats": repeats,
-        "cv2_threads": cv2.getNumThreads(),
-    }
+
+def reference_case(repeats: int) -> dict:
+    """Part 2 of the module doc: ours vs OpenCV on the same Mei -> xi = 1 mapping, tables and outputs gated."""
+    src = OmnidirModel(SIZE, SIZE, MEI_K, MEI_XI, MEI_D)
+    dst = OmnidirModel.from_fov(SIZE, SIZE, 185.0, xi=1.0)
+    frame = synthetic_frame(src)
+    theirs = cv2_stereographic_maps(src, dst)
+    builds = [(_timed_ms(build_lut, src, dst), _timed_ms(cv2_stereographic_maps, src, dst))
+              for _ in range(max(1, repeats // 3))]  # alternating: load drift hits both alike
+    ours = builds[-1][0][0]
+    inside = np.isfinite(sample_positions(src, dst)).all(axis=-1)
+    agree = float(np.hypot(ours[0] - theirs[0], ours[1] - theirs[1])[inside].max())
+    out_ours, out_cv2 = remap(frame, ours), cv2.remap(frame, *theirs, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    out_diff = np.abs(out_ours.astype(np.int16) - out_cv2.astype(np.int16))
+    build = {"ours": statistics.median(o[1] for o, _ in builds), "cv2": statistics.median(c[1] for _, c in builds)}
+    per_frame = dict(zip(("ours", "cv2"), _paired_median_ms(
+        lambda: remap(frame, ours),
+        lambda: cv2.remap(frame, *theirs, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT), 5 * repeats)))
+    gate_met = bool(agree <= MAP_GATE_PX and int(out_diff.max()) <= 1)
+    return {"source": f"omnidir (Mei) xi={MEI_XI}, D={MEI_D.tolist()}, 1024x1024",
+            "target": "omnidir xi=1 fov=185 deg, 1024x1024", "undistort_reference": UNDISTORT_REFERENCE,
+            "output_shapes": {"ours": list(out_ours.shape), "cv2": list(out_cv2.shape)},
+            "build_ms": build, "remap_ms": per_frame,
+            "undistort_build_ratio": build["ours"] / build["cv2"],
+            "undistort_remap_ratio": per_frame["ours"] / per_frame["cv2"],
+            "ratio_definition": "ours / OpenCV (> 1: ours slower)",
+            "map_agreement_px": agree, "map_agreement_pixels": int(inside.sum()),
+            "output_max_abs_diff": int(out_diff.max()), "output_mean_abs_diff": float(out_diff.mean()),
+            "gate": {"map_agreement_px_max": MAP_GATE_PX, "output_max_abs_diff_max": 1}, "gate_met": gate_met}
+
+
+def measure(quick: bool = False) -> dict:
+    """Both parts of the module doc; see there for the keys."""
+    repeats = 3 if quick else 9
+    rig, ref = rig_case(repeats), reference_case(repeats)
+    return {"frame": f"{SIZE}x{SIZE} rgb8", **rig, "reference": ref,
+            "undistort_reference": ref["undistort_reference"],
+            "undistort_build_ratio": ref["undistort_build_ratio"],
+            "undistort_remap_ratio": ref["undistort_remap_ratio"], "gate_met": ref["gate_met"],
+            "repeats": repeats, "cv2_threads": cv2.getNumThreads()}
 
 
 def print_table(result: dict) -> None:
+    """The figures as indented JSON."""
     print(json.dumps(json_safe(result), indent=2))
 
 

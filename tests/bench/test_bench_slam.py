@@ -43,9 +43,9 @@ def test_bench_slam_quick_json(capsys):
     assert s["dropped"] > 0  # a 30 Hz stream outruns a ~10 Hz tracker: latest-policy inputs shed frames
 
     o = result["overhead"]
-    assert o["tracked_min"] == o["frames"] == 10  # every frame tracked, lockstep and pipelined
+    # equal work: the node tracks every frame the bare loop steps through, with the same parameters
+    assert o["tracked_min"] == o["frames"] == o["bare_frames"] == 10
+    assert "same frames" in o["throughput_reference"] and "DenseSlam" in o["throughput_reference"]
     for key in ("node_fps", "lockstep_fps", "bare_fps", "bare_decoding_fps", "node_throughput_ratio"):
         assert positive(o[key]), key
-    assert math.isclose(o["node_throughput_ratio"], o["node_fps"] / o["bare_fps"], rel_tol=1e-3)
-    assert math.isclose(o["lockstep_throughput_ratio"], o["lockstep_fps"] / o["bare_fps"], rel_tol=1e-3)
     assert result["goals_met"]["node_throughput_ratio"] == (o["node_throughput_ratio"] >= 0.9)

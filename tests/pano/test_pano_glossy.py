@@ -11,7 +11,7 @@ from scipy import integrate, ndimage
 from probeless.errors import ProbelessError
 from probeless.eval import add_evaluation
 from probeless.pano import equirect, glossy
-from probeless.pano.glossy_eval import evaluate_glossy, random_directions
+from probeless.pano.glossy_eval import evaluate_glossy, glossy_fis, random_directions
 from probeless.pano.glossy_figure import glossy_spheres
 
 ROUGH = (0.01, 0.05, 0.1, 0.2, 0.5)
@@ -185,6 +185,24 @@ def test_linear_environment_matches_closed_form(rough, tol_ring, tol_bias):
         assert np.abs(glossy.mirror(levels, r) - exact).max() > 3 * tol_bias
 
 
+@pytest.mark.parametrize("rough", (0.1, 0.5))
+def test_filtered_importance_sampling_matches_closed_form_and_constant(rough):
+    """FIS (the ring's equal-cost competitor) is exact on a constant map and, with many samples (fine
+    levels), converges to the closed form on the linear map; with 36 it stays near it (prefiltering)."""
+    env = np.full((32, 64, 3), [2.0, 1.0, 0.5], np.float32)
+    r = np.vstack([random_directions(30, 7), [[0, 0, 1], [0, 0, -1]]])
+    np.testing.assert_allclose(glossy_fis(glossy.mip_levels(env), r, rough, 36, rng=0),
+                               np.broadcast_to([2.0, 1.0, 0.5], (32, 3)), rtol=1e-5)
+    tint = np.array([1.0, 0.5, -0.5])
+    levels = glossy.mip_levels(linear_env(64, tint))
+    n = glossy.phong_exponent(rough)
+    exact = 1.0 + r[:, 2:3] * (n + 1) / (n + 2) * tint
+    assert np.abs(glossy_fis(levels, r, rough, 2048, rng=1) - exact).max() < 5e-3
+    assert np.abs(glossy_fis(levels, r, rough, 36, rng=1) - exact).max() < 0.1
+    with pytest.raises(ValueError):
+        glossy_fis(levels, r, rough, 0)
+
+
 def test_glossy_ring_converges_to_mirror():
     env = ndimage.gaussian_filter(rand_env(64, 9), sigma=(2, 2, 0), mode="wrap")
     levels = glossy.mip_levels(env)
@@ -220,7 +238,12 @@ def test_evaluation_cli_and_figure(tmp_path, capsys):
     row = res["panoramas"]["smooth.hdr"]["0.1"]
     assert row["ring"]["mean"] < 0.02 and row["mc_noise"]["mean"] < 0.01 and row["ring_lod_bias_-1"]["mean"] < 0.02
     assert row["mirror"]["mean"] > row["ring_lod_bias_-1"]["mean"]
-    assert set(res["summary"]) == {"0.1", "0.5"} and res["summary"]["0.5"]["glossy_speedup"] > 0
+    assert set(res["summary"]) == {"0.1", "0.5"}
+    # equal cost: MC and FIS with the ring's 36 lookups, scored against the same converged reference
+    assert row["lookups"] == res["settings"]["ring_samples"] == 36
+    assert "36 lookups" in row["glossy_equal_cost_reference"]
+    assert row["mc_equal"]["mean"] > row["mc_noise"]["mean"]  # 36 samples are far noisier than the reference
+    assert 0 < row["glossy_equal_cost_error_ratio"] and res["summary"]["0.5"]["glossy_equal_cost_error_ratio"] > 0
     parser = argparse.ArgumentParser()
     add_evaluation(parser.add_subparsers(), "glossy")
     ns = parser.parse_args(["glossy", "--json", "--panorama", str(path), "--dirs", "4", "--mc-samples", "64",
