@@ -12,9 +12,9 @@ demo: setup
 	.venv/bin/probeless graph launch/synthetic_rig.yaml --out out/demo/graph.png
 	.venv/bin/probeless launch launch/coarse_model.yaml out_dir:=out/demo/coarse
 	.venv/bin/probeless coarse preview launch/scenes/partition_room.yaml --duration 4 -o out/demo/coarse_preview
-	.venv/bin/probeless launch launch/probeless.yaml out_dir:=out/demo/pipeline
+	.venv/bin/probeless launch launch/probeless.yaml seconds:=5 out_dir:=out/demo/pipeline
 	.venv/bin/probeless launch launch/pbgi.yaml out_dir:=out/demo/pbgi
-	.venv/bin/probeless eval envmap launch/scenes/l_shaped_lounge.yaml --duration 3 --stride 2 --figures out/demo/figures --plot out/demo/figures/envmap_psnr.png > out/demo/accuracy.txt
+	.venv/bin/probeless eval envmap launch/scenes/l_shaped_lounge.yaml --oracle --duration 5 --stride 2 --figures out/demo/figures --plot out/demo/figures/envmap_psnr.png > out/demo/accuracy.txt
 	cat out/demo/accuracy.txt
 	.venv/bin/probeless bench pipeline --quick > out/demo/timing.txt
 	cat out/demo/timing.txt

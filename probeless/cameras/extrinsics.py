@@ -152,7 +152,8 @@ def save_extrinsics(path, T: np.ndarray, report: ExtrinsicsReport | None = None,
 
 def load_extrinsics(path) -> np.ndarray:
     """The 4x4 fisheye_from_rgbd of a file written by :func:`save_extrinsics` (or any YAML mapping
-    with a ``fisheye_from_rgbd: {translation, rpy_deg}`` key); CalibrationError naming the key at fault."""
+    with a ``fisheye_from_rgbd: {translation, rpy_deg}`` key, or a scene file's ``rig.fisheye_from_rgbd``: the true
+    extrinsics of a synthetic rig, not an ``extends:`` base's); CalibrationError naming the key at fault."""
     import yaml
 
     try:
@@ -161,6 +162,8 @@ def load_extrinsics(path) -> np.ndarray:
     except (OSError, yaml.YAMLError) as exc:
         raise CalibrationError(f"{path}: cannot read extrinsics: {exc}") from None
     block = data.get("fisheye_from_rgbd") if isinstance(data, dict) else None
+    if block is None and isinstance(data, dict) and isinstance(data.get("rig"), dict):
+        block = data["rig"].get("fisheye_from_rgbd")
     if not isinstance(block, dict):
         raise CalibrationError(f"{path}: key 'fisheye_from_rgbd' missing or not a mapping")
     try:

@@ -219,31 +219,3 @@ def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: flo
                / max(scores["baseline"][o]["sh_diffuse_error_ldr"], 1e-12)}
             for o in scores["ours"]}
     return result
-
-
-def add_graph_arguments(p) -> None:
-    """``--graph`` and its options (``probeless eval envmap``)."""
-    g = p.add_argument_group("graph mode (score the shipped graph)")
-    g.add_argument("--graph", metavar="GRAPH", help="run this graph in lockstep on the recording (e.g. "
-                                                     "launch/probeless.yaml) and score its envmap topics")
-    g.add_argument("--graph-methods", nargs="+", choices=list(GRAPH_METHODS), default=list(GRAPH_METHODS),
-                   help="envmap_node swaps to run (default: ours baseline)")
-    g.add_argument("--graph-arg", action="append", default=[], metavar="NAME:=VALUE",
-                   help="extra graph argument for every run, e.g. dense:=false (repeatable)")
-    g.add_argument("--truth-size", type=int, default=32, help="truth cubemap face size when rendering a scene "
-                                                              "[texels] (default 32)")
-    g.add_argument("--runs-dir", metavar="DIR", default="out/eval_envmap_graph",
-                   help="where each run's maps, video and launch log go (default out/eval_envmap_graph/<scene>)")
-
-
-def graph_table(result: dict[str, Any]) -> str:
-    """The graph-mode scores as a text table (mode and graph in the title)."""
-    from probeless.envmap.score import SCORES
-
-    cols = [k for k in SCORES if k not in ("psnr_all",)] + ["psnr_all"]
-    lines = [f"mode: graph ({result['graph']}, lockstep on {result['recording']})",
-             f"{'method':<10}{'object':<10}" + "".join(f"{k:>21}" for k in cols)]
-    for method, objects in result["methods"].items():
-        for oid, e in objects.items():
-            lines.append(f"{method:<10}{oid:<10}" + "".join(f"{e[k]:>21.3f}" for k in cols))
-    return "\n".join(lines)

@@ -98,3 +98,12 @@ def test_params_rules():
     assert not ok
     assert any("together" in str(e) for e in check_params(PoseInterp.Params, {"translation": [0, 0, 0]},
                                                           node_id="interp"))
+
+
+def test_a_scene_files_rig_extrinsics_are_read():
+    from probeless.cameras.extrinsics import from_rpy, load_extrinsics
+    from tests.locations import REPO
+
+    T = load_extrinsics(REPO / "launch/scenes/l_shaped_lounge.yaml")
+    np.testing.assert_allclose(T, from_rpy([0.0, -0.06, -0.02], [-90, 0, 0]))
+    np.testing.assert_allclose(T[:3, :3], Rotation.from_euler("x", -90, degrees=True).as_matrix(), atol=1e-12)

@@ -24,20 +24,4 @@ def test_full_pipeline_runs_and_reports_every_stage():
     assert 0 < r["latency_rgb_to_augmented_ms"]["p50"] <= r["latency_rgb_to_augmented_ms"]["p99"]
 
 
-@pytest.mark.gl
-def test_full_pipeline_from_a_recording(tmp_path):
-    import io
-
-    from probeless.cli import main
-    from probeless.launch.launcher import Launcher, load_checked
-
-    bag = tmp_path / "rig.mcap"
-    assert main(["scene", "render", "launch/scenes/l_shaped_lounge.yaml", "--duration", "1", "-o", str(bag),
-                 "--no-envmaps"]) == 0
-    graph = load_checked("launch/probeless.yaml", {"source": "recording", "bag": str(bag), "rate": 0.15,
-                                                   "out_dir": str(tmp_path / "out")})
-    out = io.StringIO()
-    assert Launcher(graph, out=out).run() == 0, out.getvalue()
-    assert "[rig] INFO rig: played" in out.getvalue()
-    assert (tmp_path / "out" / "augmented.mp4").stat().st_size > 0
-    assert (tmp_path / "out" / "cubemap_net_sphere.png").exists()
+# The graph from a recording, in lockstep: tests/pipeline/test_graph_scene_files.py.
