@@ -52,13 +52,14 @@ class GraphRun:
     log: Path
 
 
-def render_recording(scene: str, duration: float | None, envmap_size: int, show_progress: bool) -> Path:
-    """The scene's ``probeless scene render`` recording (with truth maps), rendered once and cached."""
+def render_recording(scene: str, duration: float | None, envmap_size: int, show_progress: bool,
+                     cache: Path = CACHE) -> Path:
+    """The scene's ``probeless scene render`` recording (with truth maps), rendered once and cached in ``cache``."""
     from probeless.scene.extends import scene_yaml
 
     text = scene_yaml(scene)
     key = hashlib.sha256(f"{text}|{duration}|{envmap_size}".encode()).hexdigest()[:16]
-    out = CACHE / f"{Path(scene).stem}_{key}.mcap"
+    out = Path(cache) / f"{Path(scene).stem}_{key}.mcap"
     if out.is_file():
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -195,14 +196,14 @@ def _down(mask: np.ndarray | None, size: int) -> np.ndarray | None:
 
 
 def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: float | None, envmap_size: int,
-                   out_dir: Path, graph_args: list[str], show_progress: bool) -> dict[str, Any]:
+                   out_dir: Path, graph_args: list[str], show_progress: bool, cache: Path = CACHE) -> dict[str, Any]:
     """Render (a scene) or take (a recording), run the graph once per method, score (module doc)."""
     from probeless.progress import progress
 
     graph = graph_path(graph)
     scene = scene_of(source)
     recording = Path(source) if Path(source).suffix == ".mcap" else render_recording(source, duration, envmap_size,
-                                                                                      show_progress)
+                                                                                      show_progress, cache)
     runs = {}
     with progress(len(methods), f"graph runs on {Path(source).name}", enabled=show_progress) as tick:
         for method in methods:

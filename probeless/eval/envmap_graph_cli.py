@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from probeless.errors import ProbelessError
-from probeless.eval.envmap_graph import GRAPH_METHODS, evaluate_graph
+from probeless.eval.envmap_graph import CACHE, GRAPH_METHODS, evaluate_graph
 
 
 def add_graph_arguments(p) -> None:
@@ -21,6 +21,9 @@ def add_graph_arguments(p) -> None:
                    help="extra graph argument for every run, e.g. dense:=false (repeatable)")
     g.add_argument("--truth-size", type=int, default=32, help="truth cubemap face size when rendering a scene "
                                                               "[texels] (default 32)")
+    g.add_argument("--cache", metavar="DIR", default=str(CACHE),
+                   help=f"where rendered scene recordings are kept, keyed by scene, duration and truth size "
+                        f"(default {CACHE})")
     g.add_argument("--runs-dir", metavar="DIR", default="out/eval_envmap_graph",
                    help="where each run's maps, video and launch log go (default out/eval_envmap_graph/<scene>)")
 
@@ -51,7 +54,7 @@ def run_graph_mode(ns) -> int:
     with stdout_to_stderr():
         result = evaluate_graph(ns.scene, graph=ns.graph, methods=ns.graph_methods, duration=ns.duration,
                                 envmap_size=ns.truth_size, out_dir=Path(ns.runs_dir) / Path(ns.scene).stem,
-                                graph_args=ns.graph_arg, show_progress=not ns.no_progress)
+                                graph_args=ns.graph_arg, show_progress=not ns.no_progress, cache=Path(ns.cache))
     if getattr(ns, "figure", None):
         plot_graph(result, ns.figure)
     return emit(ns, result, graph_table)
