@@ -23,6 +23,7 @@ from probeless.errors import GeometryError
 from probeless.geom.floorplan import check_ceiling_height, check_floorplan
 
 FLOOR, CEILING = "floor", "ceiling"
+UNSEEN_GREY = 128 / 255  # camera LDR colour of never-observed texels: neutral grey (sRGB code 128), as in the paper
 
 
 @dataclass(frozen=True)

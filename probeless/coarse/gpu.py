@@ -1,7 +1,8 @@
 """GPU texturing of the coarse model's atlas from the fisheye (paper §4.3–4.4), moderngl headless.
 
 :class:`AtlasTexturer` keeps the atlas in a float GL texture between frames (rgb in camera LDR
-units 0..1, alpha = time the texel was last seen directly, -1 = never) and runs, per frame:
+units 0..1, alpha = time the texel was last seen directly, -1 = never; never-seen texels start neutral grey,
+:data:`~probeless.coarse.atlas.UNSEEN_GREY`) and runs, per frame:
 
 1. :meth:`occlusion` - the visibility polygon from the fisheye's floor position drawn as a triangle
    fan into a floor-space mask, then turned into an atlas-space mask by a fragment pass (skipped,
@@ -18,7 +19,7 @@ import moderngl
 import numpy as np
 
 from probeless.cameras.omnidir import OmnidirModel
-from probeless.coarse.atlas import AtlasLayout
+from probeless.coarse.atlas import UNSEEN_GREY, AtlasLayout
 from probeless.coarse.texels import TexelMap
 from probeless.coarse.visibility import is_convex, visibility_polygon
 from probeless.errors import CalibrationError
@@ -52,7 +53,7 @@ class AtlasTexturer:
         pos = np.concatenate([texmap.position, texmap.surface[..., None].astype(np.float32)], axis=2)
         nrm = np.concatenate([texmap.normal, np.zeros(texmap.surface.shape + (1,), np.float32)], axis=2)
         self.positions, self.normals = upload_texture(ctx, pos), upload_texture(ctx, nrm)
-        blank = np.zeros((layout.height, layout.width, 4), np.float32)
+        blank = np.full((layout.height, layout.width, 4), UNSEEN_GREY, np.float32)
         blank[..., 3] = -1.0
         self.atlas = [upload_texture(ctx, blank), upload_texture(ctx, blank)]
         self.fbos = [ctx.framebuffer([t]) for t in self.atlas]

@@ -5,7 +5,8 @@ Every frame, each cube texel's world direction ``d`` is rotated into the fisheye
 room is assumed infinitely far away), projected with the runtime fisheye model and, where it lies in
 the field of view, overwritten with the bilinear sample of the image there. Nothing is cleared
 between frames: texels keep the value of the last frame that saw them, so the map builds up as the
-room is observed; never-seen texels stay black (``observed`` False).
+room is observed; never-seen texels stay neutral grey (sRGB code 128, as the paper's coarse texture starts;
+:meth:`BaselineMap.observed` False).
 
 Because translation is ignored, the map is the same for every virtual object. The faces are camera
 LDR colour (sRGB-encoded fisheye output / 255), the units of the coarse atlas. For the paper's
@@ -17,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from probeless.cameras.base import CameraModel
+from probeless.coarse.atlas import UNSEEN_GREY
 from probeless.coarse.project import project_columns, sample_columns
 from probeless.errors import ProbelessError, SchemaError
 from probeless.geom.cube import cube_directions
@@ -44,8 +46,8 @@ class BaselineMap:
         self.size, self.model, self.fov_deg = int(face_size), fisheye_model, float(fov_deg)
         # [face, row, col] order, built once: ~0.4 M texels at 256^2 faces
         self.directions = cube_directions(self.size).reshape(-1, 3)
-        self.faces = np.zeros((6, self.size, self.size, 3), np.float32)  # camera LDR 0..1
-        self.observed = np.zeros((6, self.size, self.size), bool)
+        self.faces = np.full((6, self.size, self.size, 3), UNSEEN_GREY, np.float32)  # camera LDR 0..1
+        self._observed = np.zeros((6, self.size, self.size), bool)
         self.frames = 0
 
     def update(self, image: np.ndarray, world_from_fisheye: np.ndarray) -> int:
@@ -57,24 +59,28 @@ class BaselineMap:
         u, v, in_view = project_columns(self.directions, m, rotation_only(world_from_fisheye), self.fov_deg)
         idx = np.flatnonzero(in_view)
         self.faces.reshape(-1, 3)[idx] = sample_columns(image, u[idx], v[idx])
-        self.observed.reshape(-1)[idx] = True
+        self._observed.reshape(-1)[idx] = True
         self.frames += 1
         return len(idx)
 
     def reset(self) -> None:
         """Forget everything observed."""
-        self.faces[:] = 0.0
-        self.observed[:] = False
+        self.faces[:] = UNSEEN_GREY
+        self._observed[:] = False
         self.frames = 0
+
+    def observed(self) -> np.ndarray:
+        """(6, S, S) bool copy: texels some fisheye frame has covered."""
+        return self._observed.copy()
 
     def faces_as(self, dtype: str = "uint8", alpha: bool = False) -> np.ndarray:
         """The faces as ``uint8`` (0..255, rounded) or ``float16``/``float32`` (0..1); A = observed when ``alpha``."""
         if dtype == "uint8":
             out = np.round(self.faces * 255.0).astype(np.uint8)
-            a = self.observed.astype(np.uint8) * np.uint8(255)
+            a = self._observed.astype(np.uint8) * np.uint8(255)
         elif dtype in ("float16", "float32"):
             out = self.faces.astype(dtype)
-            a = self.observed.astype(dtype)
+            a = self._observed.astype(dtype)
         else:
             raise ProbelessError(f"baseline envmap: dtype must be uint8, float16 or float32, got {dtype!r}")
         return np.concatenate([out, a[..., None]], axis=-1) if alpha else out

@@ -4,7 +4,10 @@ Pass 1 renders the textured prism with depth testing. Pass 2 clears the depth bu
 the dense model (points as round splats whose size falls with distance, or a vertex-coloured
 mesh) plus any other virtual objects (flat-coloured spheres), depth-tested only among themselves:
 the dense model lands *on top of* the coarse model regardless of depth, the paper's choice (it is
-nearer and more detailed, and replaces walls it also captured). The brightness change Δ is added to
+nearer and more detailed, and replaces walls it also captured). Points given normals are dropped where they
+face away from the cube's centre or are seen nearly edge-on (``min_facing``): without the depth of the
+surfaces in front of them, such splats show hidden surfaces (a table's sides through its unsampled top) as
+dark specks. The brightness change Δ is added to
 the dense colours only (the atlas already has it baked in by the texturer).
 
 All colours are camera LDR units 0..1 (sRGB-encoded camera output / 255), as in the atlas; the map then
@@ -26,82 +29,19 @@ import numpy as np
 
 from probeless.coarse.atlas import AtlasLayout
 from probeless.coarse.texels import coarse_mesh
+from probeless.envmap.cube_util import face_buckets, ldr_colors, linear_radiance, prefilter, unit_sphere
 from probeless.errors import ProbelessError
 from probeless.geom.cube import cube_face_clip_from_world
 from probeless.gl.context import create_context, current_context
 from probeless.gl.programs import load_program, mat_bytes
 from probeless.gl.textures import float_target, upload_texture
 
+__all__ = ["EnvmapRenderer", "MIN_FACING", "SPLAT_COVER", "face_buckets", "ldr_colors", "linear_radiance", "prefilter",
+           "unit_sphere"]  # the helpers live in probeless.envmap.cube_util
 SHADERS = Path(__file__).with_name("shaders")
 NEAR_M = 0.01
-
-
-def unit_sphere(rings: int = 16, segments: int = 32) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices (V, 3) f32, triangles (T, 3) i32) of a UV sphere of radius 1."""
-    th = np.linspace(0, np.pi, rings + 1)
-    ph = np.linspace(0, 2 * np.pi, segments + 1)
-    t, p = np.meshgrid(th, ph, indexing="ij")
-    v = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
-    i, j = np.mgrid[0:rings, 0:segments]
-    a = (i * (segments + 1) + j).ravel()
-    b, c, d = a + segments + 1, a + 1, a + segments + 2
-    return v.astype("f4"), np.concatenate([np.stack([a, b, c], 1), np.stack([c, b, d], 1)]).astype("i4")
-
-
-def linear_radiance(values: np.ndarray, what: str) -> np.ndarray:
-    """float32 copy of HDR linear radiance (finite, >= 0; uint8 refused: it would be camera LDR codes)."""
-    a = np.asarray(values)
-    if a.dtype == np.uint8 or not np.issubdtype(a.dtype, np.number):
-        raise ProbelessError(f"{what}: linear radiance must be floats, got dtype {a.dtype}")
-    a = a.astype("f4")
-    if not np.isfinite(a).all() or (a < 0).any():
-        raise ProbelessError(f"{what}: linear radiance must be finite and >= 0")
-    return a
-
-
-def ldr_colors(colors: np.ndarray, what: str) -> np.ndarray:
-    """(N, 3) float32 camera LDR 0..1 from uint8 0..255 or float 0..1 colours."""
-    c = np.asarray(colors)
-    if c.ndim != 2 or c.shape[1] != 3:
-        raise ProbelessError(f"{what}: colours must be (N, 3), got {c.shape}")
-    return c.astype("f4") / 255.0 if c.dtype == np.uint8 else c.astype("f4")
-
-
-def face_buckets(points: np.ndarray, position: np.ndarray, margin: float = 0.05) -> list[np.ndarray]:
-    """Indices of the points each cube face can see (int32 per face), faces in cube order.
-
-    A point goes to every face whose 90-degree frustum, widened by ``margin`` (tan units), holds it,
-    so splats straddling a seam are drawn on both sides. Drawing each face's bucket instead of all
-    points six times cuts the vertex work about six-fold.
-    """
-    d = np.asarray(points, np.float32) - np.asarray(position, np.float32)
-    a = np.abs(d)
-    out = []
-    for axis in range(3):
-        others = [k for k in range(3) if k != axis]
-        side = np.maximum(a[:, others[0]], a[:, others[1]])
-        for sign in (1.0, -1.0):
-            forward = sign * d[:, axis]
-            out.append(np.flatnonzero((forward > 0) & (side <= forward * (1.0 + margin))).astype("i4"))
-    return out
-
-
-def prefilter(faces: np.ndarray, levels: int) -> list[tuple[float, np.ndarray]]:
-    """Mip chain of cubemap ``faces`` (6, S, S, C): [(roughness = i / (levels - 1), faces of side S >> i)].
-
-    Each level is the 2x2 box average of the previous one (the paper samples coarser mip levels for
-    rough metals). Level 0 is ``faces`` itself.
-    """
-    f = np.asarray(faces, np.float32)
-    size = f.shape[1]
-    if levels < 1 or size >> (levels - 1) < 1 or size % (1 << (levels - 1)):
-        raise ProbelessError(f"prefilter: {levels} levels do not divide a {size}-texel face")
-    out = [(0.0, f)]
-    for i in range(1, levels):
-        s = f.shape[1] // 2
-        f = f.reshape(6, s, 2, s, 2, -1).mean(axis=(2, 4))
-        out.append((i / (levels - 1), f))
-    return out
+SPLAT_COVER = 1.5  # splat diameter / point spacing: round splats close a square lattice's gaps from sqrt(2) up
+MIN_FACING = 0.1  # cos of the most grazing view of a dense point with a normal that is still drawn (84 deg)
 
 
 class EnvmapRenderer:
@@ -128,6 +68,7 @@ class EnvmapRenderer:
         self.far = 2.0 * (float(np.linalg.norm(hi - lo)) + layout.ceiling_height) + 10.0
         self.layout_padding = 2  # layout_atlas's default ring of texels around every rectangle
         self.atlas_tex = None
+        self._alpha_tex = None  # the atlas's alpha (observed texels) when set_atlas was given one
         self.dense = None  # (vao, buffers, mode)
         self.dense_linear = False  # the dense colours are linear radiance (set_dense(..., linear=True))
         self._points = self._bucket_key = self._bucket_ibo = None  # points, and per-face index buckets
@@ -135,9 +76,10 @@ class EnvmapRenderer:
 
     @current_context
     def set_atlas(self, atlas: np.ndarray, linear: bool = False) -> None:
-        """Upload the atlas image (H, W, 3|4) uint8 (or float 0..1), row 0 = top; alpha is ignored.
+        """Upload the atlas image (H, W, 3|4) uint8 (or float 0..1), row 0 = top.
 
-        ``linear``: the atlas is float linear radiance >= 0 (HDR), uploaded as float32 unchanged.
+        ``linear``: the atlas is float linear radiance >= 0 (HDR), uploaded as float32 unchanged. An alpha
+        channel (255 / 1 = observed directly) is kept for :meth:`observed_mask` only; it never dims the map.
         """
         img = np.asarray(atlas)
         want = (self.layout.height, self.layout.width)
@@ -148,19 +90,36 @@ class EnvmapRenderer:
             img = linear_radiance(img[..., :3], "EnvmapRenderer.set_atlas")
         elif img.dtype != np.uint8:
             img = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
+        self.atlas_tex = self._upload(img[..., :3], self.atlas_tex)
+        alpha = np.asarray(atlas)[..., 3] if np.shape(atlas)[2] == 4 else None
+        if alpha is None:
+            if self._alpha_tex is not None:
+                self._alpha_tex.release()
+            self._alpha_tex = None
+        else:
+            seen = (alpha >= (128 if alpha.dtype == np.uint8 else 0.5)).astype(np.uint8) * np.uint8(255)
+            self._alpha_tex = self._upload(np.repeat(seen[..., None], 3, axis=2), self._alpha_tex)
+
+    def _upload(self, img: np.ndarray, tex):
         # mip levels beyond the padding ring would blend neighbouring surfaces' rectangles
-        self.atlas_tex = upload_texture(self.ctx, img[::-1, :, :3], self.atlas_tex, filter="trilinear", repeat=True,
-                                        max_mip_level=max(0, int(np.log2(max(1, self.layout_padding)))))
+        return upload_texture(self.ctx, img[::-1], tex, filter="trilinear", repeat=True,
+                              max_mip_level=max(0, int(np.log2(max(1, self.layout_padding)))))
 
     @current_context
-    def set_dense(self, points: np.ndarray, colors: np.ndarray, linear: bool = False) -> None:
+    def set_dense(self, points: np.ndarray, colors: np.ndarray, linear: bool = False,
+                  normals: np.ndarray | None = None) -> None:
         """Dense model as coloured points (N, 3) world [m]; colours uint8 0..255 or float 0..1 camera LDR,
-        or with ``linear`` float linear radiance >= 0 (HDR, never clamped)."""
+        or with ``linear`` float linear radiance >= 0 (HDR, never clamped); optional unit ``normals`` (N, 3)
+        [world] (rows of 0 = unknown) let back-facing and edge-on points be dropped (module doc)."""
         p = np.asarray(points, "f4")
         if p.ndim != 2 or p.shape[1] != 3 or len(p) != len(colors):
             raise ProbelessError(f"EnvmapRenderer.set_dense: points {p.shape} and colours {np.shape(colors)} "
                                  f"must be (N, 3) each")
-        self._set_dense(p, self._colors(colors, linear, "set_dense"), None, moderngl.POINTS, linear)
+        n = np.zeros_like(p) if normals is None else np.asarray(normals, "f4")
+        if n.shape != p.shape or not np.isfinite(n).all():
+            raise ProbelessError(f"EnvmapRenderer.set_dense: normals {n.shape} must be finite and match the points "
+                                 f"{p.shape}")
+        self._set_dense(p, self._colors(colors, linear, "set_dense"), None, moderngl.POINTS, linear, n)
         self._points = p
 
     @current_context
@@ -182,16 +141,17 @@ class EnvmapRenderer:
             raise ProbelessError(f"{what}: colours must be (N, 3), got {c.shape}")
         return c
 
-    def _set_dense(self, p, c, tris, mode, linear: bool = False) -> None:
+    def _set_dense(self, p, c, tris, mode, linear: bool = False, normals=None) -> None:
         self.clear_dense()
         self.dense_linear = bool(linear)
         self._points, self._bucket_key, self._bucket_ibo = None, None, None
         if len(p) == 0 or (tris is not None and len(tris) == 0):
             return
-        bufs = [self.ctx.buffer(np.hstack([p, c]).astype("f4").tobytes())]
+        n = np.zeros_like(p) if normals is None else normals
+        bufs = [self.ctx.buffer(np.hstack([p, c, n]).astype("f4").tobytes())]
         if tris is not None:
             bufs.append(self.ctx.buffer(tris.tobytes()))
-        vao = self.ctx.vertex_array(self.dense_prog, [(bufs[0], "3f 3f", "in_position", "in_color")],
+        vao = self.ctx.vertex_array(self.dense_prog, [(bufs[0], "3f 3f 3f", "in_position", "in_color", "in_normal")],
                                     index_buffer=bufs[1] if tris is not None else None)
         self.dense = (vao, bufs, mode)
 
@@ -204,8 +164,8 @@ class EnvmapRenderer:
                 self._bucket_ibo[0].release()
                 self._bucket_ibo[1].release()
             ibo = self.ctx.buffer(np.concatenate(buckets).astype("i4").tobytes())
-            vao = self.ctx.vertex_array(self.dense_prog, [(self.dense[1][0], "3f 3f", "in_position", "in_color")],
-                                        index_buffer=ibo)
+            attrs = (self.dense[1][0], "3f 3f 3f", "in_position", "in_color", "in_normal")
+            vao = self.ctx.vertex_array(self.dense_prog, [attrs], index_buffer=ibo)
             starts = np.cumsum([0] + [len(b) for b in buckets])
             self._bucket_ibo = (vao, ibo, [(int(starts[f]), len(buckets[f])) for f in range(6)])
             self._bucket_key = key
@@ -230,15 +190,37 @@ class EnvmapRenderer:
 
     @current_context
     def render(self, position, size: int = 256, delta=(0.0, 0.0, 0.0), dense: bool = True, splat_m: float = 0.02,
-               max_splat_px: float = 64.0, spheres=(), finish: bool = True) -> np.ndarray:
+               max_splat_px: float = 64.0, spheres=(), finish: bool = True, min_facing: float = MIN_FACING
+               ) -> np.ndarray:
         """(6, S, S, 3) float32 camera-LDR cubemap at ``position`` (3,) world [m] (linear radiance when the
         models were given ``linear``: module docstring).
 
         ``splat_m``: world diameter of a point splat (about the dense model's point spacing) [m];
-        ``spheres``: other virtual objects as ``(centre (3,), radius [m], colour (3,) LDR 0..1)``.
+        ``spheres``: other virtual objects as ``(centre (3,), radius [m], colour (3,) LDR 0..1)``;
+        ``min_facing``: points with normals seen at a cosine below it are not drawn.
         """
         if self.atlas_tex is None:
             raise ProbelessError("EnvmapRenderer.render: no atlas yet (call set_atlas first)")
+        return self._draw(self.atlas_tex, position, size, delta, dense, splat_m, max_splat_px, spheres, min_facing)
+
+    @current_context
+    def observed_mask(self, position, size: int = 256, dense: bool = True, splat_m: float = 0.02,
+                      max_splat_px: float = 64.0, min_facing: float = MIN_FACING) -> np.ndarray:
+        """(6, S, S) bool: texels of :meth:`render`'s map that show something observed: a coarse-model texel whose
+        atlas alpha says observed directly, or, with ``dense``, a dense-model point (drawn as :meth:`render` draws
+        it). Inpainted and never-seen texels: False; so is every coarse texel when :meth:`set_atlas` was given no
+        alpha channel (e.g. an HDR atlas): then only the dense model counts (never more than is known).
+        """
+        if self.atlas_tex is None:
+            raise ProbelessError("EnvmapRenderer.observed_mask: no atlas yet (call set_atlas first)")
+        if self._alpha_tex is None:
+            self._alpha_tex = upload_texture(self.ctx, np.zeros((1, 1, 3), np.uint8))
+        faces = self._draw(self._alpha_tex, position, size, (0.0, 0.0, 0.0), dense, splat_m, max_splat_px, (),
+                           min_facing, coverage=True)
+        return faces.max(axis=3) > 0.5
+
+    def _draw(self, atlas_tex, position, size, delta, dense, splat_m, max_splat_px, spheres, min_facing,
+              coverage: bool = False) -> np.ndarray:
         pos = np.asarray(position, np.float64)
         if pos.shape != (3,) or not np.isfinite(pos).all():
             raise ProbelessError(f"EnvmapRenderer.render: position must be 3 finite numbers, got {position!r}")
@@ -247,11 +229,12 @@ class EnvmapRenderer:
         ctx = self.ctx
         ctx.disable(moderngl.CULL_FACE)
         ctx.enable(moderngl.PROGRAM_POINT_SIZE)
-        self.atlas_tex.use(0)
+        atlas_tex.use(0)
         self.coarse_prog["atlas"] = 0
         dp = self.dense_prog
         for name, value in (("splat_px_m", splat_m * size / 2.0), ("max_px", float(max_splat_px)),
-                            ("delta", tuple(float(x) for x in delta))):
+                            ("delta", tuple(float(x) for x in delta)), ("coverage", bool(coverage)),
+                            ("eye", tuple(float(x) for x in pos)), ("min_facing", float(min_facing))):
             if name in dp:
                 dp[name] = value
         out = np.empty((6, size, size, 3), np.float32)
@@ -295,6 +278,7 @@ class EnvmapRenderer:
         self.clear_dense()
         for obj in [self.coarse_vao, self.sphere_vao, *self._buffers, *self._sphere, *self._fbos.values()]:
             obj.release()
-        if self.atlas_tex is not None:
-            self.atlas_tex.release()
+        for tex in (self.atlas_tex, self._alpha_tex):
+            if tex is not None:
+                tex.release()
         self._fbos.clear()

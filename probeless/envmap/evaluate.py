@@ -1,5 +1,7 @@
-"""``probeless eval envmap``: environment maps at the virtual objects against the rig's ground truth.
+"""``probeless eval envmap --oracle``: environment maps at the virtual objects against the rig's ground truth.
 
+The oracle mode: an offline re-implementation of the graph given the true fisheye poses, extrinsics and camera
+model and the exact floorplan (no SLAM, Δ corrected before fusion), an upper bound on what the graph can do.
 One pass renders the scene's frames once (fisheye frames with their true poses, RGB-D frames for
 the dense model); then every method runs over the same frames in stamp order, as the graph's nodes
 would: Δ of frame k against the atlas after k-1, texture update, and every ``every`` fisheye
@@ -7,6 +9,12 @@ frames a cubemap per object, compared with the true cubemap there (through the f
 so in the same camera LDR units). Methods (paper §5.3): ``ours``; ``baseline`` (the fisheye
 rotated into the map, translation ignored, never cleared) and ``baseline_dense`` (plus the dense
 model on top); ablations ``no_inpainting``, ``no_brightness``, ``no_dense``, ``no_occlusion``.
+
+Scores: :func:`probeless.envmap.score.score_envmap` (the truth in LDR through the fisheye's exposure, and the
+linear HDR truth), every method over the same *common* texels, those both ``ours`` and ``baseline`` observed
+(:meth:`EnvmapRenderer.observed_mask`, :meth:`BaselineMap.observed`; a method's own observed texels when either
+is not run), plus the earlier whole-map scores (:data:`probeless.envmap.methods.METRICS`). Maps are kept until
+every method has run, then scored.
 """
 
 from __future__ import annotations
@@ -18,14 +26,17 @@ import numpy as np
 from probeless.coarse.brightness import apply_deadband, draw_sample, estimate_delta
 from probeless.coarse.frames import FOV_MARGIN_DEG, runtime_model
 from probeless.coarse.model import CoarseConfig, CoarseModel
-from probeless.color import linear_to_srgb, srgb_to_linear
+from probeless.color import srgb_to_linear
 from probeless.envmap import metrics as M
 from probeless.envmap.baseline import BaselineMap
-from probeless.envmap.cubemap import EnvmapRenderer
+from probeless.envmap.cubemap import SPLAT_COVER, EnvmapRenderer
 from probeless.envmap.dense_points import DensePoints
 from probeless.envmap.methods import METHODS, METRICS, VARIANT
+from probeless.envmap.score import score_envmap
 from probeless.envmap.sh import project_cubemap
 from probeless.progress import progress
+
+MODE = "oracle"
 
 
 @dataclass
@@ -37,7 +48,9 @@ class Rendered:
     model: object                       # runtime fisheye model
     events: list                        # (kind, t, stamp_ns, payload) in time order
     eval_times: list[float]             # fisheye times at which maps are compared
-    truth: dict[tuple[str, float], np.ndarray] = field(default_factory=dict)  # (object, t) -> LDR faces
+    truth: dict[tuple[str, float], np.ndarray] = field(default_factory=dict)  # (object, t) -> LDR faces 0..1
+    truth_hdr: dict[tuple[str, float], np.ndarray] = field(default_factory=dict)  # (object, t) -> radiance
+    exposure: dict[float, np.ndarray] = field(default_factory=dict)  # t -> the fisheye's (3,) linear gains
 
 
 def render_frames(scene_path, duration: float | None, *, stride: int, rgbd_stride: int, every: int,
@@ -67,20 +80,28 @@ def render_frames(scene_path, duration: float | None, *, stride: int, rgbd_strid
                 out.events.append(("fisheye", e.t, e.stamp_ns, (image if lut is None else remap(image, lut), pose,
                                                                  rig.light_scale(e.t))))
                 if e.t in eval_times:
+                    out.exposure[e.t] = np.asarray(rig.fisheye_gains(), np.float64)
                     for o in objects:
                         radiance = rig.render_envmap(o.position, e.t)
-                        out.truth[o.id, e.t] = linear_to_srgb(radiance * scene.fisheye.exposure).astype(np.float32)
+                        out.truth_hdr[o.id, e.t] = radiance.astype(np.float32)
+                        out.truth[o.id, e.t] = rig.fisheye_ldr(radiance).astype(np.float32) / 255.0
             tick()
     return out
 
 
 @dataclass
 class MethodResult:
-    """Per object: metric -> series over the evaluation times."""
+    """Per object: metric -> series over the evaluation times; the maps until they are scored."""
 
     method: str
     series: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     last_faces: dict[str, np.ndarray] = field(default_factory=dict)
+    maps: dict[tuple[str, float], tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # -> (est, observed)
+
+    def keep(self, obj: str, t: float, est: np.ndarray, observed: np.ndarray) -> None:
+        """Hold one map and its observed mask (6, S, S) for :func:`score_results`."""
+        self.maps[obj, t] = (est, observed)
+        self.last_faces[obj] = est
 
     def add(self, obj: str, values: dict[str, float]) -> None:
         per = self.series.setdefault(obj, {k: [] for k in METRICS})
@@ -92,27 +113,38 @@ class MethodResult:
                 for o, per in self.series.items()}
 
 
-def score(est: np.ndarray, truth: np.ndarray, observed: np.ndarray) -> dict[str, float]:
-    """The metrics of one estimated LDR cubemap against the true one (module doc)."""
-    return {"envmap_psnr": M.envmap_psnr(est, truth), "envmap_ssim": M.envmap_ssim(est, truth),
-            "coverage": M.coverage(observed), "mirror_psnr": M.mirror_psnr(est, truth),
-            "diffuse_psnr": M.diffuse_psnr(est, truth),
-            "sh_rel_error": M.sh_rel_error(project_cubemap(srgb_to_linear(np.clip(est, 0, 1))),
-                                           project_cubemap(srgb_to_linear(np.clip(truth, 0, 1))))}
+def score(est: np.ndarray, truth: np.ndarray, observed: np.ndarray, *, truth_hdr: np.ndarray | None = None,
+          exposure=1.0, common: np.ndarray | None = None) -> dict[str, float]:
+    """The metrics of one estimated LDR cubemap against the true one (module doc): the whole-map scores and,
+    given ``truth_hdr``, :func:`~probeless.envmap.score.score_envmap`'s."""
+    out = {"envmap_psnr": M.envmap_psnr(est, truth), "envmap_ssim": M.envmap_ssim(est, truth),
+           "coverage": M.coverage(observed), "mirror_psnr": M.mirror_psnr(est, truth),
+           "diffuse_psnr": M.diffuse_psnr(est, truth),
+           "sh_rel_error": M.sh_rel_error(project_cubemap(srgb_to_linear(np.clip(est, 0, 1))),
+                                          project_cubemap(srgb_to_linear(np.clip(truth, 0, 1))))}
+    if truth_hdr is not None:
+        out.update(score_envmap(est, truth, truth_hdr, exposure=exposure, observed=observed, common=common))
+    return out
+
+
+def score_results(r: Rendered, results: dict[str, MethodResult]) -> None:
+    """Score every kept map over the texels both ``ours`` and ``baseline`` observed (module doc), then drop them."""
+    for t in r.eval_times:
+        for o in r.scene.virtual_objects:
+            pair = [results[m].maps[o.id, t][1] for m in ("ours", "baseline") if m in results]
+            common = pair[0] & pair[1] if len(pair) == 2 else None
+            for res in results.values():
+                est, observed = res.maps[o.id, t]
+                res.add(o.id, score(est, r.truth[o.id, t], observed, truth_hdr=r.truth_hdr[o.id, t],
+                                    exposure=r.exposure[t], common=observed if common is None else common))
+    for res in results.values():
+        res.maps.clear()
 
 
 def _coarse_config(variant: str, atlas_size: int, fov_deg: float) -> tuple[CoarseConfig, bool]:
     config = CoarseConfig(atlas_size=atlas_size, fov_deg=fov_deg, inpaint=variant != "no_inpainting",
                           occlusion=variant != "no_occlusion")
     return config, variant != "no_brightness"
-
-
-def _dense_mask(renderer: EnvmapRenderer, points, position, size) -> np.ndarray:
-    """(6, S, S) bool: texels the dense model covers (rendered in white over a black room)."""
-    renderer.set_atlas(np.zeros((renderer.layout.height, renderer.layout.width, 3), np.uint8))
-    renderer.set_dense(points, np.full((len(points), 3), 255, np.uint8))
-    faces = renderer.render(position, size)
-    return faces.max(axis=3) > 0.5
 
 
 @dataclass
@@ -183,7 +215,7 @@ def run_variant(r: Rendered, variant: str, methods: list[str], *, atlas_size: in
     renderer = EnvmapRenderer(layout, ctx=r.rig.renderer.ctx)
 
     def on_eval(t: float, st: Replay) -> None:
-        _score_step(r, t, st.coarse, st.base, renderer, st.dense, st.delta_sum, methods, face_size, results)
+        _keep_step(r, t, st.coarse, st.base, renderer, st.dense, st.delta_sum, methods, face_size, results)
 
     replay(r, state, on_eval=on_eval, show_progress=show_progress, label=f"{variant or 'baseline'}")
     renderer.release()
@@ -196,34 +228,33 @@ def _dummy_layout(scene):
     return layout_atlas(scene.floorplan, scene.ceiling_height, 4.0)
 
 
-def _score_step(r, t, coarse, base, renderer, dense, delta_sum, methods, size, results) -> None:
+def _keep_step(r, t, coarse, base, renderer, dense, delta_sum, methods, size, results) -> None:
+    """Render (or copy) every method's map at time ``t`` for each object and keep it with its observed mask."""
     points, colours = dense.points()
+    splat = {"splat_m": SPLAT_COVER * dense.voxel_m}
+    if len(points):
+        renderer.set_dense(points, colours, normals=dense.normals())
+    else:
+        renderer.clear_dense()
+    if coarse is None:  # the baseline's renderer draws the dense model alone, over an unobserved black atlas
+        renderer.set_atlas(np.zeros((renderer.layout.height, renderer.layout.width, 4), np.uint8))
+    else:
+        renderer.set_atlas(coarse.gpu.read_packed())
     for o in r.scene.virtual_objects:
-        truth = r.truth[o.id, t]
         pos = np.asarray(o.position, np.float64)
-        covered = _dense_mask(renderer, points, pos, size) if len(points) else np.zeros((6, size, size), bool)
-        if len(points):
-            renderer.set_dense(points, colours)
         if coarse is not None:
-            packed = coarse.gpu.read_packed()
-            renderer.set_atlas(np.repeat(packed[..., 3:], 3, axis=2))
-            observed = renderer.render(pos, size, dense=False).max(axis=3) > 0.5
-            renderer.set_atlas(packed)
             for m in methods:
                 with_dense = m != "no_dense" and len(points) > 0
-                est = renderer.render(pos, size, delta=delta_sum, dense=with_dense)
-                results[m].add(o.id, score(est, truth, observed | (covered if with_dense else False)))
-                results[m].last_faces[o.id] = est
-        else:
-            for m in methods:
-                est, observed = base.faces.copy(), base.observed.copy()
-                if m == "baseline_dense" and len(points):
-                    renderer.set_atlas(np.zeros((renderer.layout.height, renderer.layout.width, 3), np.uint8))
-                    on_top = renderer.render(pos, size, delta=delta_sum)
-                    est = np.where(covered[..., None], on_top, est)
-                    observed |= covered
-                results[m].add(o.id, score(est, truth, observed))
-                results[m].last_faces[o.id] = est
+                est = renderer.render(pos, size, delta=delta_sum, dense=with_dense, **splat)
+                results[m].keep(o.id, t, est, renderer.observed_mask(pos, size, dense=with_dense, **splat))
+            continue
+        for m in methods:
+            est, observed = base.faces.copy(), base.observed()
+            if m == "baseline_dense" and len(points):
+                covered = renderer.observed_mask(pos, size, **splat)
+                est = np.where(covered[..., None], renderer.render(pos, size, delta=delta_sum, **splat), est)
+                observed |= covered
+            results[m].keep(o.id, t, est, observed)
 
 
 def evaluate_envmaps(scene_path, *, duration: float | None = None, methods=METHODS, face_size: int = 64,
@@ -244,4 +275,5 @@ def evaluate_envmaps(scene_path, *, duration: float | None = None, methods=METHO
     for variant, ms in variants.items():
         run_variant(r, variant, ms, atlas_size=atlas_size, face_size=face_size, results=results,
                     show_progress=show_progress)
+    score_results(r, results)
     return r, results

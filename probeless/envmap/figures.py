@@ -9,7 +9,7 @@ import numpy as np
 
 
 def plot_psnr(rendered, results, path: str) -> None:
-    """Envmap PSNR over time per method, one panel per object."""
+    """PSNR over the common texels over time per method, one panel per object (the oracle mode)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -19,10 +19,10 @@ def plot_psnr(rendered, results, path: str) -> None:
     fig, axes = plt.subplots(1, len(objects), figsize=(6 * len(objects), 4), squeeze=False)
     for ax, o in zip(axes[0], objects):
         for m, res in results.items():
-            ax.plot(rendered.eval_times, res.series[o]["envmap_psnr"], label=m, lw=2 if m == "ours" else 1)
-        ax.set_title(f"{rendered.scene.name}: {o}")
+            ax.plot(rendered.eval_times, res.series[o]["psnr_common"], label=m, lw=2 if m == "ours" else 1)
+        ax.set_title(f"{rendered.scene.name}: {o} (oracle)")
         ax.set_xlabel("time [s]")
-        ax.set_ylabel("envmap PSNR [dB]")
+        ax.set_ylabel("PSNR over common texels [dB]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()

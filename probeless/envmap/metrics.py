@@ -60,11 +60,11 @@ def envmap_psnr(est: np.ndarray, ref: np.ndarray, mask: np.ndarray | None = None
     return psnr(a, b, w * (1.0 if mask is None else np.asarray(mask, bool)))
 
 
-def ssim_image(x: np.ndarray, y: np.ndarray, data_range: float = 1.0) -> float:
-    """Mean SSIM of two (H, W) or (H, W, C) images (per channel, averaged), Wang et al. 2004.
+def ssim_map(x: np.ndarray, y: np.ndarray, data_range: float = 1.0) -> np.ndarray:
+    """(H, W) SSIM map of two (H, W) or (H, W, C) images (channels averaged), Wang et al. 2004.
 
-    Gaussian window sigma 1.5 truncated to 11x11, K1 = 0.01, K2 = 0.03, population (co)variances; the
-    mean leaves out the 5-pixel border where the window leaves the image (as scikit-image does).
+    Gaussian window sigma 1.5 truncated to 11x11, K1 = 0.01, K2 = 0.03, population (co)variances, borders
+    reflected (as scikit-image's ``structural_similarity(..., full=True)``).
     """
     x, y = np.atleast_3d(np.asarray(x, np.float64)), np.atleast_3d(np.asarray(y, np.float64))
     if x.shape != y.shape or min(x.shape[:2]) <= 2 * SSIM_RADIUS:
@@ -78,8 +78,14 @@ def ssim_image(x: np.ndarray, y: np.ndarray, data_range: float = 1.0) -> float:
     mx, my = blur(x), blur(y)
     vx, vy, cxy = blur(x * x) - mx * mx, blur(y * y) - my * my, blur(x * y) - mx * my
     s = (2 * mx * my + c1) * (2 * cxy + c2) / ((mx * mx + my * my + c1) * (vx + vy + c2))
+    return s.mean(axis=2)
+
+
+def ssim_image(x: np.ndarray, y: np.ndarray, data_range: float = 1.0) -> float:
+    """Mean SSIM of two (H, W) or (H, W, C) images (:func:`ssim_map`), leaving out the 5-pixel border where the
+    window leaves the image (as scikit-image does)."""
     r = SSIM_RADIUS
-    return float(s[r:-r, r:-r].mean())
+    return float(ssim_map(x, y, data_range)[r:-r, r:-r].mean())
 
 
 def envmap_ssim(est: np.ndarray, ref: np.ndarray) -> float:

@@ -53,14 +53,14 @@ def test_update_samples_the_image_where_the_model_projects_the_rotated_direction
     uv, valid = MODEL.project(d @ T[:3, :3])  # rows of R^T d
     cos = (d @ T[:3, :3])[:, 2]
     expect_in = valid & (cos >= np.cos(np.radians(91.5)))
-    np.testing.assert_array_equal(b.observed.reshape(-1), expect_in)
+    np.testing.assert_array_equal(b.observed().reshape(-1), expect_in)
     assert written == expect_in.sum()
     maps = uv[expect_in].astype(np.float32)
     ref = cv2.remap(image, maps[:, 0:1], maps[:, 1:2], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     np.testing.assert_allclose(b.faces.reshape(-1, 3)[expect_in] * 255, ref[:, 0].astype(np.float64), atol=0.6)
-    assert np.all(b.faces.reshape(-1, 3)[~expect_in] == 0)
+    assert np.all(b.faces.reshape(-1, 3)[~expect_in] == np.float32(128 / 255))  # unseen: neutral grey
     # one frame covers the 183 deg cap: (1 - cos 91.5 deg) / 2 of the sphere
-    assert coverage(b.observed) == pytest.approx((1 - np.cos(np.radians(91.5))) / 2, abs=0.01)
+    assert coverage(b.observed()) == pytest.approx((1 - np.cos(np.radians(91.5))) / 2, abs=0.01)
 
 
 def test_reproduces_a_distant_environment_in_world_directions_ignoring_translation():
@@ -68,8 +68,8 @@ def test_reproduces_a_distant_environment_in_world_directions_ignoring_translati
     b = BaselineMap(32, MODEL, 170.0)
     b.update(fisheye_of_environment(T), T)
     d = cube_directions(32).reshape(6, 32, 32, 3)
-    err = np.abs(b.faces - env_colour(d))[b.observed]
-    assert b.observed.sum() > 2000 and err.max() < 0.02  # quantisation + bilinear on a smooth field
+    err = np.abs(b.faces - env_colour(d))[b.observed()]
+    assert b.observed().sum() > 2000 and err.max() < 0.02  # quantisation + bilinear on a smooth field
     moved = BaselineMap(32, MODEL, 170.0)
     moved.update(fisheye_of_environment(T), pose([0, 70, 30], t=(-5.0, 4.0, 2.0)))
     np.testing.assert_array_equal(moved.faces, b.faces)
@@ -79,16 +79,16 @@ def test_accumulates_without_clearing_and_keeps_the_last_value():
     up, down = pose([0, 0, 0]), pose([180, 0, 0])  # optical axis +Z (ceiling), then -Z (floor)
     b = BaselineMap(16, MODEL, 150.0)
     b.update(np.full((W, W, 3), 100, np.uint8), up)
-    first = b.observed.copy()
+    first = b.observed().copy()
     assert first[4].all() and not first[5].any()
     b.update(np.full((W, W, 3), 200, np.uint8), down)
-    assert b.observed[5].all() and np.array_equal(b.observed & first, first)  # nothing forgotten
+    assert b.observed()[5].all() and np.array_equal(b.observed() & first, first)  # nothing forgotten
     only_first = first & ~BaselineEnvmap_seen(down, 16, 150.0)
     np.testing.assert_allclose(b.faces[only_first], 100 / 255, atol=1e-6)
-    np.testing.assert_allclose(b.faces[b.observed & ~only_first], 200 / 255, atol=1e-6)
-    assert coverage(b.observed) == pytest.approx(1 - np.cos(np.radians(75)), abs=0.02)  # two 150 deg caps
+    np.testing.assert_allclose(b.faces[b.observed() & ~only_first], 200 / 255, atol=1e-6)
+    assert coverage(b.observed()) == pytest.approx(1 - np.cos(np.radians(75)), abs=0.02)  # two 150 deg caps
     b.reset()
-    assert not b.observed.any() and b.frames == 0
+    assert not b.observed().any() and b.frames == 0 and np.all(b.faces == np.float32(128 / 255))
 
 
 def BaselineEnvmap_seen(T, size, fov):
@@ -134,7 +134,7 @@ def test_node_publishes_the_same_map_for_every_object():
     for T in poses[:2]:
         ref.update(fisheye_of_environment(T), T)
     np.testing.assert_array_equal(m.faces[..., :3], ref.faces_as("uint8"))
-    np.testing.assert_array_equal(m.faces[..., 3] == 255, ref.observed)
+    np.testing.assert_array_equal(m.faces[..., 3] == 255, ref.observed())
 
 
 def test_node_waits_for_camera_info_moves_objects_and_checks_params():

@@ -39,7 +39,7 @@ def test_history_sums_deltas_after_each_stamp_whatever_their_arrival_order():
 
 def _texel(face_size, point):
     f, r, c = texel_from_direction((np.asarray(point) - CENTRE)[None], face_size)
-    return int(f[0]), int(r[0]), int(c[0])
+    return int(f[0]), int(np.rint(r[0])), int(np.rint(c[0]))
 
 
 @pytest.mark.gl
