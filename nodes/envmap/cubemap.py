@@ -238,8 +238,9 @@ class CubemapRenderer(Node):
                 from probeless.hdr.coarse import dense_linear
 
                 colors = dense_linear(colors)
-            if isinstance(m, PointCloud):
-                self.renderer.set_dense(m.points, colors, linear=linear)
+            if isinstance(m, PointCloud):  # normals drop points seen from behind (a table's dark sides)
+                self.renderer.set_dense(m.points, colors, linear=linear,
+                                        normals=m.normals if len(m.normals) else None)
             else:
                 self.renderer.set_dense_mesh(m.vertices, m.triangles, colors, linear=linear)
 

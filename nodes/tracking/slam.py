@@ -263,9 +263,10 @@ class DenseSlamNode(Node):
         header, out = Header(self.counts["last_good"], "world"), self.params.model_output
         if out in ("points", "both"):
             with self.ctx.timed("extract_points"):
-                pts, cols = self.slam.extract_pointcloud(self.params.model_max_points)
+                pts, cols, normals = self.slam.extract_pointcloud(self.params.model_max_points, normals=True)
                 stamps = self.slam.fusion_stamps(pts)
-            self.ctx.publish("model/points", PointCloud(header, pts, quantize8(cols), stamps_ns=stamps))  # sRGB 0..1
+            self.ctx.publish("model/points", PointCloud(header, pts, quantize8(cols), normals=normals,  # sRGB 0..1
+                                                        stamps_ns=stamps))
         if out in ("mesh", "both"):
             with self.ctx.timed("extract_mesh"):
                 v, tri, cols = self.slam.extract_mesh()

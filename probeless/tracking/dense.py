@@ -226,10 +226,12 @@ class DenseSlam:
         """Voxel weight a surface needs to be extracted (:func:`.model_extract.extraction_threshold`)."""
         return extraction_threshold(self.integrated)
 
-    def extract_pointcloud(self, max_points: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(points (N, 3) float32 [m, world], colours (N, 3) float32 0..1), at most ``max_points``."""
-        pts, cols = extract_pointcloud(self.model, self.extraction_threshold(), max_points)
-        return self._to_world(pts), cols
+    def extract_pointcloud(self, max_points: int | None = None,
+                           normals: bool = False) -> tuple[np.ndarray, ...]:
+        """(points (N, 3) float32 [m, world], colours (N, 3) float32 0..1), at most ``max_points``; with
+        ``normals`` also their unit normals (N, 3) [world] (rows of 0: none)."""
+        pts, cols, nrm = extract_pointcloud(self.model, self.extraction_threshold(), max_points)
+        return (self._to_world(pts), cols, self._to_world(nrm)) if normals else (self._to_world(pts), cols)
 
     def fusion_stamps(self, points_world: np.ndarray) -> np.ndarray:
         """(N,) int64: when each point (N, 3) [m, world] of the extracted model was last fused, i.e. the

@@ -13,18 +13,22 @@ def extraction_threshold(integrated: int) -> float:
 
 
 def extract_pointcloud(model, weight_threshold: float,
-                       max_points: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(points (N, 3) float32 [m, world], colours (N, 3) float32 0..1) of ``model``'s surface
-    (an ``o3d.t.pipelines.slam.Model``); at most ``max_points``, evenly subsampled."""
+                       max_points: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points (N, 3) float32 [m, grid], colours (N, 3) float32 0..1, unit normals (N, 3) float32 [grid]: the
+    TSDF gradient, rows of 0 where Open3D gives none) of ``model``'s surface (an ``o3d.t.pipelines.slam.Model``);
+    at most ``max_points``, evenly subsampled."""
     pcd = model.extract_pointcloud(weight_threshold)
     if pcd.is_empty():
-        return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)
+        return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)
     pts = pcd.point.positions.numpy().astype(np.float32)
     cols = pcd.point.colors.numpy().astype(np.float32, copy=False) if "colors" in pcd.point else np.zeros_like(pts)
+    nrm = pcd.point.normals.numpy().astype(np.float32) if "normals" in pcd.point else np.zeros_like(pts)
     if max_points is not None and len(pts) > max_points:
         keep = np.linspace(0, len(pts) - 1, max_points).astype(np.int64)
-        pts, cols = pts[keep], cols[keep]
-    return np.ascontiguousarray(pts), np.ascontiguousarray(np.clip(cols, 0.0, 1.0))
+        pts, cols, nrm = pts[keep], cols[keep], nrm[keep]
+    length = np.linalg.norm(nrm, axis=1, keepdims=True)
+    nrm = np.where((length > 1e-6) & np.isfinite(length), nrm / np.maximum(length, 1e-6), 0.0).astype(np.float32)
+    return np.ascontiguousarray(pts), np.ascontiguousarray(np.clip(cols, 0.0, 1.0)), np.ascontiguousarray(nrm)
 
 
 def extract_mesh(model, weight_threshold: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

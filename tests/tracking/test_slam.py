@@ -305,6 +305,12 @@ def test_node_publishes_poses_states_model_and_trajectory(tmp_path):
     fused = [p.header.stamp_ns for p in poses][::2]
     assert len(cloud.stamps_ns) == len(cloud) and set(np.unique(cloud.stamps_ns)) <= set(fused)
     assert cloud.stamps_ns.max() == fused[-1]  # (10 slow frames: the last one covers the whole model)
+    # TSDF-gradient normals, unit length, facing the camera that saw the surface (the cubemap node drops points
+    # seen from behind with them)
+    n = cloud.normals
+    assert n.shape == cloud.points.shape and np.abs(np.linalg.norm(n, axis=1) - 1).max() < 1e-3
+    eye = poses[-1].target_from_source[:3, 3]
+    assert np.mean(np.einsum("ij,ij->i", n, eye - cloud.points) > 0) > 0.95
     stamps, est = read_tum(traj)
     assert stamps.tolist() == [p.header.stamp_ns for p in poses]
     np.testing.assert_allclose(est, [p.target_from_source for p in poses], atol=1e-8)
