@@ -1,8 +1,11 @@
 """``probeless eval envmap SCENE``: ours vs the baseline and the ablations against the rig's true maps.
 
-Modes: ``--oracle`` (the default) is the offline re-implementation given the true poses, extrinsics, camera
-model and floorplan (:func:`probeless.envmap.evaluate.evaluate_envmaps`); every table and the JSON name the
-mode (``"mode": "oracle"``). Each mode is an option in :func:`add_arguments` and a ``run_<mode>`` function
+Modes: ``--graph GRAPH`` runs the shipped graph in lockstep on a ``scene render`` recording and scores its
+``envmap`` topics (:mod:`probeless.eval.envmap_graph`: SLAM poses, the calibration the recording gives, the
+graph's own Δ handling; ``"mode": "graph"``); ``--oracle`` (the default when ``--graph`` is not given) is the
+offline re-implementation given the true poses, extrinsics, camera model and floorplan
+(:func:`probeless.envmap.evaluate.evaluate_envmaps`); every table and the JSON name the mode (``"mode": "oracle"``).
+Each mode is an option in :func:`add_arguments` and a ``run_<mode>`` function
 that :func:`run` picks. The scores are :func:`probeless.envmap.score.score_envmap`'s; the pictures
 :mod:`probeless.envmap.figures`. ``--plot`` has no ``--figure`` alias here: ``--figure`` already
 abbreviates ``--figures DIR``.
@@ -15,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from probeless.envmap.methods import METHODS, METRICS, TABLE
+from probeless.eval.envmap_graph_cli import add_graph_arguments
 from probeless.eval.harness import add_common_options, emit
 
 ORACLE = ("oracle: offline replay with the true fisheye poses, extrinsics, camera model and floorplan, dense model "
@@ -38,6 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--face-size", type=int, default=64, help="cubemap face size [texels] (default 64)")
     p.add_argument("--atlas-size", type=int, default=512, help="coarse atlas side [texels] (default 512)")
     p.add_argument("--figures", metavar="DIR", help="write mirror spheres of the last frame: ours / baseline / truth")
+    add_graph_arguments(p)
 
 
 def _scene_path(path: str) -> str:
@@ -63,6 +68,10 @@ def _scene_path(path: str) -> str:
 
 def run(ns: argparse.Namespace) -> int:
     """The chosen mode's evaluation (module doc). Returns the exit status."""
+    if ns.graph:
+        from probeless.eval.envmap_graph_cli import run_graph_mode
+
+        return run_graph_mode(ns)
     return run_oracle(ns)
 
 
