@@ -187,11 +187,11 @@ def build_parser() -> argparse.ArgumentParser:
 def split_overrides(argv: list[str]) -> tuple[list[str], list[str]]:
     """Separate graph arguments ``name:=value`` (allowed anywhere on the line) from the rest.
 
-    The value of an option that itself takes ``from:=to`` (``--remap``, ``--arg``) stays put.
+    The value of an option that itself takes ``from:=to`` (``--remap``, ``--arg``, ``--graph-arg``) stays put.
     """
     rest, overrides = [], []
     for i, token in enumerate(argv):
-        takes_pair = i > 0 and argv[i - 1] in ("--remap", "--arg")
+        takes_pair = i > 0 and argv[i - 1] in ("--remap", "--arg", "--graph-arg")
         if ":=" in token and not token.startswith("-") and not takes_pair:
             overrides.append(token)
         else:

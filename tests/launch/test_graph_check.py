@@ -91,6 +91,19 @@ def test_arg_defaults_take_dirname_and_env_substitutions(tmp_path, monkeypatch):
     assert graph.nodes["sink"].params == {"out_dir": "given/from-env"}
 
 
+def test_arg_defaults_may_use_arguments_declared_above(tmp_path):
+    g = tmp_path / "g.yaml"
+    g.write_text("args:\n  scene: a.yaml\n  objects: {default: $(arg scene)}\n  both: $(arg scene)+$(arg objects)\n"
+                 "nodes:\n  - id: sink\n    node: summary_sink\n    params: {out_dir: $(arg both)}\n")
+    assert parse_graph(g).nodes["sink"].params == {"out_dir": "a.yaml+a.yaml"}
+    assert parse_graph(g, {"scene": "b.yaml"}).nodes["sink"].params == {"out_dir": "b.yaml+b.yaml"}
+    assert parse_graph(g, {"objects": "o.yaml"}).nodes["sink"].params == {"out_dir": "a.yaml+o.yaml"}
+    g.write_text("args:\n  objects: {default: $(arg scene)}\n  scene: a.yaml\n"
+                 "nodes:\n  - id: sink\n    node: summary_sink\n    params: {out_dir: $(arg objects)}\n")
+    errors = [e.format() for e in parse_graph(g).errors]
+    assert len(errors) == 1 and "undeclared argument 'scene'" in errors[0] and ":2:" in errors[0], errors
+
+
 def test_cli_overrides_are_typed_and_unknown_ones_rejected(capsys):
     graph = load_checked(str(GRAPHS.parent.parent / "launch/demo_runtime.yaml"), {"frames": 5})
     assert graph.nodes["camera"].params["count"] == 5
