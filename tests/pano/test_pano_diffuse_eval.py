@@ -9,7 +9,7 @@ import pytest
 
 from probeless.eval import add_evaluation
 from probeless.pano import diffuse, equirect
-from probeless.pano.diffuse_eval import evaluate_diffuse, exact_diffuse, rel_errors
+from probeless.pano.diffuse_eval import GATE, TIMED, evaluate_diffuse, exact_diffuse, rel_errors, summarize
 from probeless.pano.diffuse_report import diffuse_figure, format_table
 
 
@@ -52,12 +52,33 @@ def test_evaluate_diffuse_table(pano):
     assert row["gpu_moments"]["max_rel_error"] < 0.2 * row["gpu"]["max_rel_error"]
     assert row["matmul"]["max_rel_error"] < row["gpu"]["max_rel_error"] < 0.1
     assert row["sh9"]["mean_rel_error"] > row["gpu"]["mean_rel_error"]
-    for key in ("gpu_s", "gpu_moments_s", "matmul_s", "paper_bruteforce_s", "exact_s"):
+    # equal work: the speed-up reference is the exact convolution of the same frame to the same map
+    assert "exact_diffuse" in res["speedup_reference"] and "every texel" in res["speedup_reference"]
+    assert row["texels"] == 16 * 8
+    assert {k: tuple(v) for k, v in row["output_shapes"].items()} == {m: (8, 16, 3) for m in ("exact",) + TIMED}
+    for key in ("gpu_s", "gpu_moments_s", "matmul_s", "exact_s", "matmul_weights_s"):
         assert row[key] > 0
+    assert "paper_bruteforce_s" not in row  # a Python loop is not a reference
+    assert res["gate"] == {"max_rel_error_max": GATE}
     assert res["summary"]["16x8"]["gpu_max_rel_error"] == row["gpu"]["max_rel_error"]
-    head, line = format_table(res["summary"], [(16, 8)]).splitlines()
-    assert "gpu_moments max / mean" in head and line.startswith("16x8")
-    assert f"{row['sh9']['max_rel_error']:.2e}" in line
+    head, line, note = format_table(res["summary"], [(16, 8)]).splitlines()
+    assert "gpu_moments max / mean" in head and "exact ms" in head and line.startswith("16x8")
+    assert f"{row['sh9']['max_rel_error']:.2e}" in line and "exact FFT" in note
+
+
+def _row(max_err):
+    err = {"max_rel_error": max_err, "mean_rel_error": max_err / 10}
+    return {**{m: err for m in ("gpu", "gpu_moments", "matmul", "sh9")},
+            **{f"{m}_{k}": 1.0 for m in TIMED for k in ("s", "speedup")},
+            "exact_s": 1.0, "matmul_weights_s": 1.0, "matmul_first_use_speedup": 1.0}
+
+
+def test_summary_gate_is_the_worst_panorama():
+    """The gate holds only when every panorama's max error is within it."""
+    ok = summarize({"a": {"8x4": _row(0.5 * GATE)}, "b": {"8x4": _row(0.9 * GATE)}}, [(8, 4)])["8x4"]
+    bad = summarize({"a": {"8x4": _row(0.5 * GATE)}, "b": {"8x4": _row(2.0 * GATE)}}, [(8, 4)])["8x4"]
+    assert all(ok[f"{m}_gate_met"] for m in TIMED) and not any(bad[f"{m}_gate_met"] for m in TIMED)
+    assert bad["gpu_max_rel_error"] == 2.0 * GATE
 
 
 @pytest.mark.slow
