@@ -19,10 +19,10 @@ from __future__ import annotations
 import numpy as np
 
 from probeless.bench.pano_frames import SMALL, best_ms, ms
+from probeless.pano.diffuse_eval import GATE as DIFFUSE_GATE
+from probeless.pano.diffuse_eval import SPEEDUP_REFERENCE as DIFFUSE_REFERENCE
 
 SIDE_BY_SIDE, ROUGHNESS = (64, 32), 0.1
-DIFFUSE_GATE = 0.01  # max relative error of a fast map against the exact one
-DIFFUSE_REFERENCE = "exact_diffuse (FFT convolution of the full-resolution frame, numpy float64, all texels)"
 
 
 def first_use_ms(hdr: np.ndarray, ctx) -> dict:
