@@ -79,13 +79,14 @@ def _run(cmd: list[str], log: Path, show_output: bool) -> None:
 
 
 def run_graph(graph: str, recording: Path, objects: str, method: str, out_dir: Path, args: list[str],
-              show_progress: bool) -> GraphRun:
-    """Launch ``graph`` in lockstep on ``recording`` with ``method``'s envmap node; read back its maps."""
+              show_progress: bool, record: tuple[str, ...] = ()) -> GraphRun:
+    """Launch ``graph`` in lockstep on ``recording`` with ``method``'s envmap node; read back its maps. The run's
+    ``maps.mcap`` also records the topics in ``record`` (e.g. ``slam/model/points``)."""
     run_dir = out_dir / method
     maps = run_dir / "maps.mcap"
     cmd = [sys.executable, "-m", "probeless", "launch", graph, "source:=recording", f"bag:={recording}", "rate:=0",
            f"objects:={objects}", f"envmap_node:={GRAPH_METHODS[method]}", f"out_dir:={run_dir}", *args,
-           "--record", str(maps), "--record-topics", "envmap/envmaps", "--force"]
+           "--record", str(maps), "--record-topics", "envmap/envmaps", *record, "--force"]
     _run(cmd, run_dir / "launch.log", show_progress)
     return GraphRun(method, read_maps(maps), run_dir / "launch.log")
 
@@ -196,7 +197,8 @@ def _down(mask: np.ndarray | None, size: int) -> np.ndarray | None:
 
 
 def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: float | None, envmap_size: int,
-                   out_dir: Path, graph_args: list[str], show_progress: bool, cache: Path = CACHE) -> dict[str, Any]:
+                   out_dir: Path, graph_args: list[str], show_progress: bool, cache: Path = CACHE,
+                   record: tuple[str, ...] = ()) -> dict[str, Any]:
     """Render (a scene) or take (a recording), run the graph once per method, score (module doc)."""
     from probeless.progress import progress
 
@@ -207,7 +209,7 @@ def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: flo
     runs = {}
     with progress(len(methods), f"graph runs on {Path(source).name}", enabled=show_progress) as tick:
         for method in methods:
-            runs[method] = run_graph(graph, recording, scene, method, out_dir, graph_args, show_progress)
+            runs[method] = run_graph(graph, recording, scene, method, out_dir, graph_args, show_progress, record)
             tick()
     scores = score_runs(runs, read_truth(recording))
     result: dict[str, Any] = {"mode": "graph", "graph": graph, "scene": scene, "recording": str(recording),

@@ -24,6 +24,8 @@ def add_graph_arguments(p) -> None:
     g.add_argument("--cache", metavar="DIR", default=str(CACHE),
                    help=f"where rendered scene recordings are kept, keyed by scene, duration and truth size "
                         f"(default {CACHE})")
+    g.add_argument("--graph-record", nargs="+", default=[], metavar="TOPIC",
+                   help="also record these topics of each run in <runs-dir>/<method>/maps.mcap")
     g.add_argument("--runs-dir", metavar="DIR", default="out/eval_envmap_graph",
                    help="where each run's maps, video and launch log go (default out/eval_envmap_graph/<scene>)")
 
@@ -54,7 +56,8 @@ def run_graph_mode(ns) -> int:
     with stdout_to_stderr():
         result = evaluate_graph(ns.scene, graph=ns.graph, methods=ns.graph_methods, duration=ns.duration,
                                 envmap_size=ns.truth_size, out_dir=Path(ns.runs_dir) / Path(ns.scene).stem,
-                                graph_args=ns.graph_arg, show_progress=not ns.no_progress, cache=Path(ns.cache))
+                                graph_args=ns.graph_arg, show_progress=not ns.no_progress, cache=Path(ns.cache),
+                                record=tuple(ns.graph_record))
     if getattr(ns, "figure", None):
         plot_graph(result, ns.figure)
     return emit(ns, result, graph_table)

@@ -53,33 +53,4 @@ def test_nothing_shared_is_an_error_and_masks_must_divide():
         _down(np.ones((6, 12, 12), bool), S)
 
 
-@pytest.mark.slow
-@pytest.mark.graph
-@pytest.mark.gl
-@pytest.mark.timeout(900)
-def test_eval_envmap_graph_scores_the_shipped_graph_on_a_scene(tmp_path, capsys):
-    """`probeless eval envmap --graph` end to end on a short, small scene: renders it, runs the graph twice in
-    lockstep (ours, baseline), prints one JSON object naming the mode; ours beats the baseline."""
-    import json
-
-    from probeless.cli import main
-    from tests.locations import REPO
-
-    scene = tmp_path / "small.yaml"
-    scene.write_text(f"extends: {REPO}/launch/scenes/convex_room.yaml\nname: small\n"
-                     "rig:\n  rgbd: {width: 320, height: 240, fx: 262.5, fy: 262.5, cx: 159.5, cy: 119.5}\n"
-                     "  fisheye: {width: 512, height: 512}\n")
-    plot = tmp_path / "psnr.png"
-    assert main(["eval", "envmap", "--graph", "launch/probeless.yaml", str(scene), "--duration", "0.5", "--json",
-                 "--no-progress", "--runs-dir", str(tmp_path / "runs"), "--graph-arg", "atlas_size:=256",
-                 "--plot", str(plot), "--cache", str(tmp_path / "cache")]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert out["mode"] == "graph" and out["graph_args"] == ["atlas_size:=256"]
-    ours, base = out["methods"]["ours"], out["methods"]["baseline"]
-    assert set(ours) == set(base) == {"sphere", "probe_b"}
-    for oid in ours:
-        assert len(ours[oid]["times_s"]) >= 4 and ours[oid]["times_s"] == base[oid]["times_s"]
-        assert 0 < ours[oid]["common_coverage"] <= min(ours[oid]["coverage"], base[oid]["coverage"]) + 1e-9
-        assert ours[oid]["psnr_common"] > base[oid]["psnr_common"] + 3
-    assert plot.stat().st_size > 0 and (tmp_path / "runs/small/ours/augmented.mp4").exists()
-    assert len(list((tmp_path / "cache").glob("small_*.mcap"))) == 1  # the rendered recording, kept for reruns
+# `probeless eval envmap --graph` end to end: tests/pipeline/test_graph_scene_files.py (one render, both runs).

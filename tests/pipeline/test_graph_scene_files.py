@@ -5,7 +5,8 @@ camera turns from the east wall to the north and west walls. Through ``launch/pr
 - the fisheye poses use the scene's extrinsics (from the rig's ``fisheye_from_rgbd`` topic), not the lounge's;
 - both objects get maps and show in the augmented frames;
 - the dense model's east wall, fused before the switch and never again, is drawn with the brightness change
-  measured after it (Δ reaches points out of view after a new dense model arrives).
+  measured after it (Δ reaches points out of view after a new dense model arrives);
+- `probeless eval envmap --graph` scores both envmap nodes through it (one JSON object, mode "graph").
 """
 
 from __future__ import annotations
@@ -57,21 +58,28 @@ trajectory:
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
+    """`probeless eval envmap --graph` on the scene: renders it, runs the graph in lockstep with each envmap node,
+    scores the maps; the `ours` run also records what the tests below look at."""
+    import contextlib
+    import io
+    import json
+
     d = tmp_path_factory.mktemp("switch_turn")
     scene = d / "switch_turn.yaml"
     scene.write_text(SCENE)
-    bag = d / "rig.mcap"
-    assert main(["scene", "render", str(scene), "-o", str(bag), "--envmap-size", "32"]) == 0
-    rec = d / "run.mcap"
-    assert main(["launch", "launch/probeless.yaml", "source:=recording", f"bag:={bag}", "rate:=0",
-                 f"objects:={scene}", "atlas_size:=512", f"out_dir:={d / 'out'}", "--record", str(rec),
-                 "--record-topics", "envmap/envmaps", "slam/model/points", "interp/fisheye_pose", "compositor/image",
-                 "brightness/delta"]) == 0
-    return load_scene(scene), read(bag), read(rec)
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["eval", "envmap", "--graph", "launch/probeless.yaml", str(scene), "--json", "--no-progress",
+                     "--cache", str(d / "cache"), "--runs-dir", str(d / "runs"), "--graph-arg", "atlas_size:=512",
+                     "--plot", str(d / "psnr.png"), "--graph-record", "slam/model/points", "interp/fisheye_pose",
+                     "compositor/image", "brightness/delta"]) == 0
+    (bag,) = (d / "cache").glob("switch_turn_*.mcap")
+    result = json.loads(out.getvalue())
+    return load_scene(scene), read(bag), read(d / "runs/switch_turn/ours/maps.mcap"), result
 
 
 def run_dir(run):
-    return run[0].path.parent / "out"
+    return run[0].path.parent / "runs/switch_turn/ours"
 
 
 def read(path) -> dict[str, list]:
@@ -87,7 +95,7 @@ def angle_deg(R) -> float:
 
 
 def test_fisheye_poses_use_the_scenes_extrinsics(run):
-    scene, rig, graph = run
+    scene, rig, graph, _ = run
     truth = {m.header.stamp_ns: m.target_from_source for m in rig["rig/gt/fisheye_pose"]}
     poses = graph["interp/fisheye_pose"]
     assert len(poses) >= 0.75 * len(truth)  # frames whose RGB-D poses SLAM lost are dropped, not guessed
@@ -99,7 +107,7 @@ def test_fisheye_poses_use_the_scenes_extrinsics(run):
 
 
 def test_every_object_gets_a_map_and_shows_in_the_video(run):
-    scene, rig, graph = run
+    scene, rig, graph, _ = run
     assert {c.object_id for c in graph["envmap/envmaps"]} == {"east_ball", "north_ball"}
     out = run_dir(run)
     assert (out / "augmented.mp4").stat().st_size > 0
@@ -123,7 +131,7 @@ def test_every_object_gets_a_map_and_shows_in_the_video(run):
 
 
 def test_the_east_wall_fused_before_the_switch_gets_its_brightness_change(run):
-    scene, rig, graph = run
+    scene, rig, graph, _ = run
     switch_ns = int(SWITCH_S * 1e9)
     assert sum(d.delta.mean() for d in graph["brightness/delta"] if d.sampled and d.header.stamp_ns > switch_ns) > 0.05
     model = graph["slam/model/points"][-1]
@@ -148,3 +156,16 @@ def test_the_east_wall_fused_before_the_switch_gets_its_brightness_change(run):
     assert (true_mean - raw).mean() > 0.08, (true_mean, raw)
     assert np.abs(drawn.mean(axis=0) - true_mean).mean() < 0.5 * np.abs(raw - true_mean).mean(), \
         (drawn.mean(axis=0), raw, true_mean)
+
+
+def test_eval_envmap_graph_scores_both_envmap_nodes_through_the_graph(run):
+    scene, _, _, out = run
+    assert out["mode"] == "graph" and out["graph_args"] == ["atlas_size:=512"]
+    ours, base = out["methods"]["ours"], out["methods"]["baseline"]
+    assert set(ours) == set(base) == {"east_ball", "north_ball"}
+    for oid in ours:
+        assert len(ours[oid]["times_s"]) >= 40 and ours[oid]["times_s"] == base[oid]["times_s"]
+        assert 0 < ours[oid]["common_coverage"] <= min(ours[oid]["coverage"], base[oid]["coverage"]) + 1e-9
+        assert ours[oid]["psnr_common"] > base[oid]["psnr_common"] + 3
+    d = scene.path.parent
+    assert (d / "psnr.png").stat().st_size > 0 and (d / "runs/switch_turn/baseline/augmented.mp4").exists()
