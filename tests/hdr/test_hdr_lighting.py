@@ -261,7 +261,7 @@ def test_lighting_arg_swaps_the_envmap_include(monkeypatch):
     assert hdr.nodes["envmap"].node == "cubemap_renderer" and hdr.nodes["hdr_atlas"].params["atlas_size"] == 1024
     assert hdr.nodes["photo"].params["path"] == str(REPO / "launch/scenes/photos/convex_room.hdr")
     for g in (ldr, hdr):
-        assert g.nodes["compositor"].inputs["envmap"].source == "envmap/envmap/sphere"
+        assert g.nodes["compositor"].inputs["envmap"].source == "envmap/envmaps"  # every object on one topic
 
 
 @pytest.mark.gl
@@ -280,13 +280,13 @@ def test_pipeline_with_hdr_lighting_publishes_linear_hdr_envmaps(tmp_path):
                           "hdr_method": "landis-pc"})  # the graph, not PatchMatch (tested on its own)
     assert {"photo", "hdr_atlas", "hdr_dense", "envmap"} <= set(graph.nodes)
     bag = str(tmp_path / "run.mcap")
-    add_recorder(graph, bag, topics=["envmap/envmap/sphere", "hdr_atlas/atlas", "compositor/image"],
+    add_recorder(graph, bag, topics=["envmap/envmaps", "hdr_atlas/atlas", "compositor/image"],
                  diagnostics=False)
     log = io.StringIO()
     assert Launcher(graph, out=log, ready_timeout=90.0).run() == 0, log.getvalue()
     with BagReader(bag) as reader:
         msgs = [(m.topic, reader.decode(m)) for m in reader.messages()]
-    cubes = [m for t, m in msgs if t == "envmap/envmap/sphere"]
+    cubes = [m for t, m in msgs if t == "envmap/envmaps" and m.object_id == "sphere"]
     atlases = [m for t, m in msgs if t == "hdr_atlas/atlas"]
     assert atlases and all(a.encoding == "rgbf32" for a in atlases)
     assert cubes and all(c.linear and c.faces.dtype == np.float16 for c in cubes)
