@@ -53,7 +53,7 @@ def test_fragment_source_writes_both_renderers_pngs(tmp_path):
 @pytest.mark.gl
 def test_synthetic_source_pbgi_bleeds_more_red_than_the_envmap_on_the_side_facing_the_panel(tmp_path):
     """red_wall: at the end of 3 s the camera sees the sphere's side facing the red panel on the image's left."""
-    _launch({"source": "synthetic", "out_dir": str(tmp_path)})
+    _launch({"source": "synthetic", "rate": 0, "out_dir": str(tmp_path)})  # lockstep: the same model under load
     pbgi, env = _rgb(tmp_path / "pbgi/frame_last.png"), _rgb(tmp_path / "envmap/frame_last.png")
     obj = np.any(pbgi != env, axis=2)
     cols = np.nonzero(obj.any(axis=0))[0]
