@@ -10,17 +10,25 @@ import numpy as np
 
 def plot_psnr(rendered, results, path: str) -> None:
     """PSNR over the common texels over time per method, one panel per object (the oracle mode)."""
+    panels = [(f"{rendered.scene.name}: {o.id} (oracle)",
+               {m: (rendered.eval_times, res.series[o.id]["psnr_common"]) for m, res in results.items()})
+              for o in rendered.scene.virtual_objects]
+    plot_panels(panels, path)
+
+
+def plot_panels(panels: list[tuple[str, dict]], path: str) -> None:
+    """One panel per ``(title, {method: (times [s], PSNR over common texels [dB])})``, side by side, to ``path``
+    (both evaluation modes' ``--plot``)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    objects = [o.id for o in rendered.scene.virtual_objects]
-    fig, axes = plt.subplots(1, len(objects), figsize=(6 * len(objects), 4), squeeze=False)
-    for ax, o in zip(axes[0], objects):
-        for m, res in results.items():
-            ax.plot(rendered.eval_times, res.series[o]["psnr_common"], label=m, lw=2 if m == "ours" else 1)
-        ax.set_title(f"{rendered.scene.name}: {o} (oracle)")
+    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4), squeeze=False)
+    for ax, (title, lines) in zip(axes[0], panels):
+        for m, (times, values) in lines.items():
+            ax.plot(times, values, label=m, lw=2 if m == "ours" else 1)
+        ax.set_title(title)
         ax.set_xlabel("time [s]")
         ax.set_ylabel("PSNR over common texels [dB]")
         ax.grid(alpha=0.3)

@@ -65,23 +65,10 @@ def run_graph_mode(ns) -> int:
 
 def plot_graph(result: dict[str, Any], path: str) -> None:
     """PSNR over the common texels over time per method, one panel per object (the graph mode's ``--plot``)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from probeless.envmap.figures import plot_panels
 
     methods = result["methods"]
     objects = sorted({o for per in methods.values() for o in per})
-    fig, axes = plt.subplots(1, len(objects), figsize=(6 * len(objects), 4), squeeze=False)
-    for ax, o in zip(axes[0], objects):
-        for m, per in methods.items():
-            ax.plot(per[o]["times_s"], per[o]["series"]["psnr_common"], label=m, lw=2 if m == "ours" else 1)
-        ax.set_title(f"{Path(result['scene']).stem}: {o} (graph, lockstep)")
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("PSNR over common texels [dB]")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    plot_panels([(f"{Path(result['scene']).stem}: {o} (graph, lockstep)",
+                  {m: (per[o]["times_s"], per[o]["series"]["psnr_common"]) for m, per in methods.items()})
+                 for o in objects], path)
