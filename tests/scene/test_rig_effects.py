@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from locations import REPO
 from scene_examples import BASE
 
 from probeless.bag.reader import BagReader
@@ -180,17 +179,4 @@ def test_scene_render_records_fisheye_from_rgbd_and_the_merged_scene(tmp_path):
     assert "extends" not in merged and merged["given"]["seed"] == 2 and merged["rig"]["rgbd"]["width"] == 160
 
 
-@pytest.mark.gl
-@pytest.mark.graph
-@pytest.mark.slow
-@pytest.mark.parametrize("name", ["convex_room", "partition_room", "light_switch", "l_shaped_lounge"])
-def test_every_realistic_scene_renders(name):
-    scene = load_scene(REPO / "launch/scenes" / f"{name}_realistic.yaml")
-    rig = Rig(scene, envmap_size=8, fisheye_cube_size=64)
-    t = scene.duration / 2
-    rgb, depth, _ = rig.render_rgbd(FrameEvent(RGBD_FRAME, 0, t))
-    fisheye, _ = rig.render_fisheye(FrameEvent(FISHEYE_FRAME, 0, t))
-    rig.release()
-    assert 0.8 < (depth > 0).mean() < 1.0  # Kinect dropouts, but mostly valid
-    assert 20 < rgb.mean() < 235 and rgb.std() > 5
-    assert fisheye.shape == (scene.fisheye.height, scene.fisheye.width, 3) and fisheye.max() == 255
+# Every *_realistic scene renders: tests/scene/test_synthetic_rig.py::test_every_shipped_scene_renders.

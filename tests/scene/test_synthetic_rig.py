@@ -244,14 +244,19 @@ def test_shipped_rig_graph_runs(tmp_path):
 @pytest.mark.gl
 @pytest.mark.graph
 @pytest.mark.slow
+@pytest.mark.parametrize("variant", ["", "_realistic"])
 @pytest.mark.parametrize("name", ["convex_room", "partition_room", "light_switch", "l_shaped_lounge"])
-def test_every_shipped_scene_renders(name):
-    scene = load_scene(ROOT / "launch/scenes" / f"{name}.yaml")
+def test_every_shipped_scene_renders(name, variant):
+    scene = load_scene(ROOT / "launch/scenes" / f"{name}{variant}.yaml")
     rig = Rig(scene, envmap_size=8, fisheye_cube_size=64)
     t = scene.duration / 2
     rgb, depth, _ = rig.render_rgbd(FrameEvent(RGBD_FRAME, 0, t))
     fisheye, _ = rig.render_fisheye(FrameEvent(FISHEYE_FRAME, 0, t))
     rig.release()
-    assert (depth > 0).mean() > 0.99  # closed rooms within depth_max_m
+    valid = (depth > 0).mean()
+    if variant:
+        assert 0.8 < valid < 1.0  # Kinect dropouts, but mostly valid
+    else:
+        assert valid > 0.99  # closed rooms within depth_max_m
     assert 20 < rgb.mean() < 235 and rgb.std() > 5
     assert fisheye.shape == (scene.fisheye.height, scene.fisheye.width, 3) and fisheye.max() == 255  # a light is seen
