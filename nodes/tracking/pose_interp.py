@@ -37,6 +37,7 @@ from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
 from probeless.messages.sensor import Image
 from probeless.runtime import Node, param
+from probeless.runtime.params import file_load_problem
 from probeless.tracking.interp import PoseBuffer
 
 
@@ -46,16 +47,9 @@ def fisheye_from_rgbd(translation, rpy_deg) -> np.ndarray:
 
 
 def _extrinsics_problem(path: str) -> str | None:
-    if not path:
-        return None
     from probeless.cameras.extrinsics import load_extrinsics
-    from probeless.errors import ProbelessError
 
-    try:
-        load_extrinsics(path)
-    except ProbelessError as exc:
-        return str(exc)
-    return None
+    return file_load_problem(path, load_extrinsics)
 
 
 def _rpy_problem(rpy, params) -> str | None:

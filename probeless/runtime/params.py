@@ -260,6 +260,20 @@ def _path_problem(f: dataclasses.Field, value: Any) -> str | None:
     return path_problem(value, kind, f.metadata.get("resolve"))
 
 
+def file_load_problem(path: str, load: Callable[[str], Any]) -> str | None:
+    """A param check for a file param whose content must load: None for '' (no file) or when ``load(path)``
+    succeeds, else the ProbelessError's message (it names the file and the key at fault)."""
+    from probeless.errors import ProbelessError
+
+    if not path:
+        return None
+    try:
+        load(path)
+    except ProbelessError as exc:
+        return str(exc)
+    return None
+
+
 def path_problem(value: str, kind: str = "file", resolve: Callable[[str], Any] | None = None) -> str | None:
     """Why ``value`` is not an existing ``kind`` ("file", "dir" or "any") path, or None.
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from probeless.errors import GraphError, SceneError
 from probeless.launch.yamlload import load_yaml
+from probeless.runtime.params import file_load_problem
 
 DEFAULT_MATERIAL: dict[str, Any] = {"type": "mirror"}
 
@@ -104,10 +105,4 @@ def object_positions(objects: list[Mapping[str, Any]]) -> dict[str, np.ndarray]:
 
 def objects_file_problem(path: str) -> str | None:
     """A param check: '' (none) or a file :func:`load_objects` reads without error."""
-    if not path:
-        return None
-    try:
-        load_objects(path)
-    except SceneError as exc:
-        return str(exc)
-    return None
+    return file_load_problem(path, load_objects)
