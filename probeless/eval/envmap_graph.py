@@ -118,7 +118,9 @@ def read_truth(recording: Path) -> Truth:
     gains: list[tuple[int, np.ndarray]] = []
     with BagReader(recording) as reader:
         truth.start_ns = reader.start_ns or 0
-        for m in reader.messages():
+        wanted = [t for t in reader.topics() if t.startswith(("rig/gt/envmap/", "rig/gt/envmap_ldr/"))
+                  or t == "rig/gt/fisheye_exposure"]  # not the images: their chunks need not be read
+        for m in reader.messages(wanted):
             if m.topic.startswith(("rig/gt/envmap/", "rig/gt/envmap_ldr/")):
                 true_stamps[m.topic].append((m.log_time_ns, reader.decode(m)))
             elif m.topic == "rig/gt/fisheye_exposure":
