@@ -45,7 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_graph_arguments(p)
 
 
-def _scene_path(path: str) -> str:
+def scene_path(path: str) -> str:
     """A scene file, or the scene a `scene render` recording stores in its metadata (written to a temp file)."""
     p = Path(path)
     if p.suffix in (".yaml", ".yml"):
@@ -81,7 +81,7 @@ def run_oracle(ns: argparse.Namespace) -> int:
     from probeless.progress import stdout_to_stderr
 
     with stdout_to_stderr():
-        rendered, results = evaluate_envmaps(_scene_path(ns.scene), duration=ns.duration, methods=ns.methods,
+        rendered, results = evaluate_envmaps(scene_path(ns.scene), duration=ns.duration, methods=ns.methods,
                                              face_size=ns.face_size, atlas_size=ns.atlas_size, every=ns.every,
                                              stride=ns.stride, show_progress=not ns.no_progress)
     out: dict[str, Any] = {"mode": MODE, "mode_detail": ORACLE, "scene": ns.scene, "times_s": rendered.eval_times,

@@ -142,13 +142,6 @@ def read_truth(recording: Path) -> Truth:
     return truth
 
 
-def scene_of(path: str) -> str:
-    """The scene file of a scene file or of a ``scene render`` recording (its stored scene)."""
-    from probeless.eval.envmap import _scene_path
-
-    return _scene_path(path)
-
-
 def graph_path(graph: str) -> str:
     """``graph`` as given, or relative to the repository when it is not a file here (``launch/probeless.yaml``)."""
     p = Path(graph)
@@ -202,10 +195,11 @@ def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: flo
                    out_dir: Path, graph_args: list[str], show_progress: bool, cache: Path = CACHE,
                    record: tuple[str, ...] = ()) -> dict[str, Any]:
     """Render (a scene) or take (a recording), run the graph once per method, score (module doc)."""
+    from probeless.eval.envmap import scene_path
     from probeless.progress import progress
 
     graph = graph_path(graph)
-    scene = scene_of(source)
+    scene = scene_path(source)
     recording = Path(source) if Path(source).suffix == ".mcap" else render_recording(source, duration, envmap_size,
                                                                                       show_progress, cache)
     runs = {}
