@@ -35,6 +35,8 @@ class InputCounters(Struct):
     dropped: int        # messages discarded by the queue policy here [count]
     seq_gaps: int       # messages missing upstream, from header.seq gaps [count]
     invalid: int        # frames that failed schema checks and were discarded [count]
+    queued_bytes: int = 0        # payload bytes waiting now [bytes]
+    publisher_restarts: int = 0  # times the publisher's seq started again (it restarted) [count]
 
 
 @message("diagnostics/NodeStatus", version=1)
@@ -49,6 +51,8 @@ class NodeStatus(Message):
     timings: tuple[StageTiming, ...] = ()       # one entry per callback/stage
     inputs: tuple[InputCounters, ...] = ()      # one entry per subscribed input
     published: tuple[str, ...] = ()             # "<output>=<count>" messages published per output
+    rss_bytes: int = 0                          # resident memory of the node's process now [bytes]
+    warnings: tuple[str, ...] = ()              # health problems now, e.g. memory rising without bound
 
 
 TRACKING_STATES = ("initializing", "ok", "lost", "invalid_input")

@@ -11,6 +11,7 @@ from typing import Any
 from probeless.launch.graph import Graph
 from probeless.launch.validate import host_endpoint, split_source
 from probeless.runtime.node import output_type
+from probeless.runtime.transport import endpoint_for_policy, lossy_endpoint
 
 
 def _output(decl, name: str) -> dict[str, Any]:
@@ -49,13 +50,15 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
                 topic = graph.nodes[src_id].topics.get(out, f"{src_id}/{out}")
                 _, typ = output_type(graph.node_classes[src_id], out)
                 recorded_type = graph.nodes[src_id].output_types.get(out)
-                entry.update(topic=topic, source_node=src_id, output=out, endpoint=endpoints[src_id],
+                entry.update(topic=topic, source_node=src_id, output=out,
+                             endpoint=endpoint_for_policy(endpoints[src_id], inp.policy),
                              type_name=typ.TYPE_NAME if typ is not None else recorded_type)
                 subscribers.setdefault(topic, []).append([decl.id, inp.name])
             inputs.append(entry)
         names = decl.outputs if decl.outputs is not None else [o for o in cls.OUTPUTS if not o.endswith("/*")]
         nodes[decl.id] = {"id": decl.id, "index": index, "node": decl.node, "params": decl.params,
                           "file": decl.file, "line": decl.line, "endpoint": endpoints[decl.id],
+                          "lossy_endpoint": lossy_endpoint(endpoints[decl.id]),
                           "host": decl.host, "inputs": inputs, "restart": decl.restart,
                           "max_restarts": decl.max_restarts, "restart_backoff_s": decl.restart_backoff_s,
                           "outputs": {o: _output(decl, o) for o in names}}

@@ -32,6 +32,7 @@ from probeless.messages.base import Message
 from probeless.messages.diagnostics import InputCounters, NodeStatus
 from probeless.messages.header import Header, Tick
 from probeless.runtime.clock import NodeClock
+from probeless.runtime.memwatch import MemoryWatch, rss_bytes
 from probeless.runtime.node import Node, output_type
 from probeless.runtime.params import load_params
 from probeless.runtime.queues import InputQueue
@@ -77,6 +78,7 @@ class NodeRuntime:
         self.callback_names = {name: f"on_input:{name}" for name in self.queues}
         self.topics = {name: out["topic"] for name, out in spec["outputs"].items()}
         self.node: Node | None = None
+        self.memory, self.memory_warned = MemoryWatch(), False
 
     def _policy(self, name: str) -> tuple[str, int]:
         if name == CLOCK_INPUT:
@@ -281,12 +283,19 @@ class NodeRuntime:
     def _publish_diagnostics(self) -> None:
         with self.cond:
             inputs = tuple(InputCounters(q.name, self._input_topic(q.name), q.policy, q.queue_size,
-                                         len(q.items), q.received, q.dropped, q.seq_gaps, q.invalid)
+                                         len(q.items), q.received, q.dropped, q.seq_gaps, q.invalid,
+                                         q.queued_bytes, q.restarts)
                            for q in self.queues.values() if q.name != CLOCK_INPUT)
         self.publisher.poll_subscriptions(0)
+        rss = rss_bytes()
+        self.memory.sample(rss)
+        warnings = (self.memory.describe(),) if self.memory.growing else ()
+        if warnings and not self.memory_warned:
+            self.memory_warned = True
+            self.log.warning("%s", warnings[0])
         status = NodeStatus(Header(self.now_ns(), self.node_id), self.node_id, self.state,
                             time.monotonic() - self.started_at, self.timings.report(), inputs,
-                            tuple(f"{t}={n}" for t, n in self.publisher.published.items()))
+                            tuple(f"{t}={n}" for t, n in self.publisher.published.items()), rss, warnings)
         self.publisher.publish(f"{self.node_id}/diagnostics", status, lambda: self.stop_requested)
 
     def _input_topic(self, name: str) -> str:

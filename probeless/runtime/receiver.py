@@ -24,7 +24,7 @@ from probeless.runtime.queues import InputQueue
 
 log = logging.getLogger("probeless.receiver")
 BLOCK_RECV_HWM = 4
-DROP_RECV_HWM = 1000
+DROP_RECV_HWM = 128   # lossy inputs: past this (plus the publisher's SEND_HWM) the publisher drops for us
 EOS_MARK = object()
 
 
@@ -176,12 +176,14 @@ class Receiver(threading.Thread):
                 self.pending[sock] = item
                 poller.unregister(sock)
 
-    def _item(self, w: InputWire, frames: list) -> tuple[Any, int]:
+    def _item(self, w: InputWire, frames: list) -> tuple[Any, int, int]:
+        """(message, seq, payload bytes) of received frames."""
+        nbytes = sum(len(f) for f in frames)
         if w.raw:
             raw = peek_raw(w.topic, frames, time.time_ns())
-            return raw, raw.seq
+            return raw, raw.seq, nbytes
         _, _, msg = wire.decode(frames, expected=w.type_name, max_bytes=self.max_bytes)
-        return msg, msg.header.seq
+        return msg, msg.header.seq, nbytes
 
     def _push(self, name: str, item: tuple) -> bool:
         with self.cond:
@@ -191,7 +193,7 @@ class Receiver(threading.Thread):
                 self.eos_seen = True
             else:
                 self.arrivals += 1
-                if not q.push(self.arrivals, item[0], item[1]):
+                if not q.push(self.arrivals, *item):
                     return False
             self.cond.notify()
         return True

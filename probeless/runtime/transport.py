@@ -1,10 +1,20 @@
-"""Sockets of one node process: the XPUB publisher (the receiver thread is in ``receiver.py``).
+"""Sockets of one node process: the publisher (the receiver thread is in ``receiver.py``).
 
-The publisher is an XPUB with NODROP, so a send waits (instead of silently dropping) when a
-subscriber's pipe is full; only ``block`` inputs ever let their pipe fill, which is exactly the
-backpressure that policy asks for. XPUB also reports each subscription, which is what the
-readiness barrier counts. The receiver thread drains every SUB socket continuously, decodes, and
-applies each input's queue policy, so a slow callback never stalls upstream for other policies.
+Every node publishes each output on two XPUB sockets, and each subscriber connects to the one its
+queue policy asks for, so backpressure is per subscriber:
+
+* **lossless** (``endpoint``, XPUB_NODROP) for ``block`` inputs: a send waits while such a
+  subscriber's pipe is full. That is the backpressure the policy asks for, and the only way a
+  subscriber can ever slow a publisher.
+* **lossy** (:func:`lossy_endpoint`) for ``latest`` and ``drop_oldest`` inputs and for the topic
+  tools: libzmq drops a message for a peer whose pipe is full, for that peer alone, and the send
+  never waits. The subscriber sees the loss as a ``seq`` gap, counted in its diagnostics
+  (``seq_gaps``) and shown by ``probeless topic info``. End-of-stream markers are the exception:
+  they are sent losslessly on both sockets.
+
+XPUB also reports each subscription, which is what the readiness barrier counts. A pipe holds at
+most ``SEND_HWM`` messages at the publisher plus the subscriber's receive HWM (``receiver.py``),
+so a stopped subscriber costs bounded memory.
 """
 
 from __future__ import annotations
@@ -22,17 +32,29 @@ from probeless.messages.base import Message
 
 log = logging.getLogger("probeless.transport")
 SEND_HWM = 16
+LOSSLESS_POLICIES = ("block",)
 
 
-class Publisher:
-    """One node's output socket: publishes messages with per-topic seq, counts subscriptions."""
+def lossy_endpoint(endpoint: str) -> str:
+    """The lossy twin of a node's (lossless) publisher endpoint: ``X.pub`` -> ``X.lossy``, tcp PORT -> PORT+1."""
+    if endpoint.startswith("tcp://"):
+        addr, _, port = endpoint.rpartition(":")
+        return f"{addr}:{int(port) + 1}"
+    return endpoint[:-4] + ".lossy" if endpoint.endswith(".pub") else endpoint + ".lossy"
 
-    def __init__(self, zctx: zmq.Context, endpoint: str, publisher_id: str,
-                 now_ns: Callable[[], int] = time.time_ns):
-        self.publisher_id = publisher_id
-        self.now_ns = now_ns  # publish time: wall clock, or recorded time on replay (deterministic)
+
+def endpoint_for_policy(endpoint: str, policy: str) -> str:
+    """Where a subscriber with queue ``policy`` connects, given the publisher's (lossless) ``endpoint``."""
+    return endpoint if policy in LOSSLESS_POLICIES else lossy_endpoint(endpoint)
+
+
+class _Socket:
+    """One XPUB of a publisher with the subscriptions it has seen."""
+
+    def __init__(self, zctx: zmq.Context, endpoint: str, publisher_id: str, lossless: bool):
+        self.endpoint, self.lossless = endpoint, lossless
         self.sock = zctx.socket(zmq.XPUB)
-        self.sock.setsockopt(zmq.XPUB_NODROP, 1)
+        self.sock.setsockopt(zmq.XPUB_NODROP, 1 if lossless else 0)
         self.sock.setsockopt(zmq.XPUB_VERBOSER, 1)   # every subscribe and unsubscribe, even duplicates
         self.sock.setsockopt(zmq.SNDHWM, SEND_HWM)
         self.sock.setsockopt(zmq.SNDTIMEO, 100)
@@ -42,32 +64,83 @@ class Publisher:
         except zmq.ZMQError as exc:
             raise TransportError(f"{publisher_id}: cannot bind {endpoint}: {exc}") from None
         self.subscriptions: Counter[str] = Counter()
-        self.seq: Counter[str] = Counter()
-        self.published: Counter[str] = Counter()
+        self._wanted: dict[str, bool] = {}
 
-    def poll_subscriptions(self, timeout_ms: int = 0) -> None:
-        """Read pending (un)subscribe notifications into ``subscriptions``."""
+    def poll(self, timeout_ms: int) -> bool:
+        """Read pending (un)subscribe notifications; True if any arrived."""
+        changed = False
         while self.sock.poll(timeout_ms, zmq.POLLIN):
             event = self.sock.recv()
             if event:
                 self.subscriptions[event[1:].decode(errors="replace")] += 1 if event[0] == 1 else -1
+                changed = True
             timeout_ms = 0
+        if changed:
+            self._wanted.clear()
+        return changed
+
+    def wanted(self, topic: str) -> bool:
+        """Whether any subscription matches ``topic`` (ZeroMQ's prefix match)."""
+        hit = self._wanted.get(topic)
+        if hit is None:
+            hit = self._wanted[topic] = any(n > 0 and topic.startswith(s) for s, n in self.subscriptions.items())
+        return hit
+
+
+class Publisher:
+    """One node's outputs: a lossless and a lossy XPUB, per-topic seq, subscription counts."""
+
+    def __init__(self, zctx: zmq.Context, endpoint: str, publisher_id: str,
+                 now_ns: Callable[[], int] = time.time_ns):
+        self.publisher_id = publisher_id
+        self.now_ns = now_ns  # publish time: wall clock, or recorded time on replay (deterministic)
+        self.lossy = _Socket(zctx, lossy_endpoint(endpoint), publisher_id, lossless=False)
+        try:
+            self.lossless = _Socket(zctx, endpoint, publisher_id, lossless=True)
+        except TransportError:
+            self.lossy.sock.close(0)
+            raise
+        self.socks = (self.lossy, self.lossless)  # lossy first: a waiting lossless send never delays them
+        self.seq: Counter[str] = Counter()
+        self.published: Counter[str] = Counter()
+
+    @property
+    def sock(self) -> zmq.Socket:
+        """The lossless socket (the one ``block`` subscribers connect to)."""
+        return self.lossless.sock
+
+    @property
+    def subscriptions(self) -> Counter[str]:
+        """Live subscriptions by prefix, over both sockets."""
+        return self.lossless.subscriptions + self.lossy.subscriptions
+
+    def poll_subscriptions(self, timeout_ms: int = 0) -> None:
+        """Read pending (un)subscribe notifications of both sockets (waiting up to ``timeout_ms`` in all)."""
+        if timeout_ms and not zmq.select([s.sock for s in self.socks], [], [], timeout_ms / 1000)[0]:
+            return
+        for s in self.socks:
+            s.poll(0)
 
     def publish_raw(self, topic: str, frames: list, should_stop: Callable[[], bool]) -> None:
         """Send recorded frames ``[meta, buffers...]`` unchanged on ``topic`` (bit-exact replay)."""
-        self._send([topic.encode(), *frames], should_stop)
+        self._send(topic, [topic.encode(), *frames], should_stop)
         self.published[topic] += 1
 
     def publish(self, topic: str, msg: Message, should_stop: Callable[[], bool]) -> None:
-        """Send ``msg`` on ``topic`` with the next seq; waits under backpressure until sent or stopped."""
+        """Send ``msg`` on ``topic`` with the next seq; waits only for ``block`` subscribers, until sent or stopped."""
         seq = self.seq[topic]
         self.seq[topic] = seq + 1
         frames = wire.encode(topic, msg, self.publisher_id, self.now_ns(), seq=seq)
-        self._send(frames, should_stop)
+        self._send(topic, frames, should_stop)
         self.published[topic] += 1
 
     def send_eos(self, topic: str, should_stop: Callable[[], bool]) -> None:
-        self._send([topic.encode(), wire.EOS], should_stop)
+        """End of stream on ``topic``: lossless for every subscriber, lossy ones included."""
+        self.lossy.sock.setsockopt(zmq.XPUB_NODROP, 1)
+        try:
+            self._send(topic, [topic.encode(), wire.EOS], should_stop, every=True)
+        finally:
+            self.lossy.sock.setsockopt(zmq.XPUB_NODROP, 0)
 
     def wait_drained(self, topics: list[str], should_stop: Callable[[], bool],
                      note: Callable[[str], None]) -> bool:
@@ -80,32 +153,43 @@ class Publisher:
         last_note = time.monotonic()
         while not should_stop():
             self.poll_subscriptions(50)
-            busy = [t for t in topics if self.subscriptions[t] > 0]
+            subs = self.subscriptions
+            busy = [t for t in topics if subs[t] > 0]
             if not busy:
                 return True
             if time.monotonic() - last_note > 5:
                 last_note = time.monotonic()
-                note(", ".join(f"{t} ({self.subscriptions[t]})" for t in busy))
+                note(", ".join(f"{t} ({subs[t]})" for t in busy))
         return False
 
-    def _send(self, frames: list, should_stop: Callable[[], bool]) -> None:
-        last = len(frames) - 1
-        first = True
-        for i, frame in enumerate(frames):
-            flags = zmq.SNDMORE if i < last else 0
-            big = getattr(frame, "nbytes", len(frame)) >= wire.ZERO_COPY_BYTES
-            while True:
-                try:
-                    self.sock.send(frame, flags, copy=not big)
-                    break
-                except zmq.Again:
-                    # only the first frame waits: HWM counts whole messages
-                    if not first or should_stop():
-                        raise TransportError("publish interrupted by shutdown") from None
-            first = False
+    def _send(self, topic: str, frames: list, should_stop: Callable[[], bool], every: bool = False) -> None:
+        for s in self.socks:
+            if s.sock.get(zmq.EVENTS) & zmq.POLLIN:
+                s.poll(0)
+            if every or s.wanted(topic):
+                _send_frames(s.sock, frames, should_stop)
 
     def close(self) -> None:
-        self.sock.close()
+        for s in self.socks:
+            s.sock.close()
+
+
+def _send_frames(sock: zmq.Socket, frames: list, should_stop: Callable[[], bool]) -> None:
+    """Send one multipart message; on a NODROP socket, retry while the pipe is full until sent or stopped."""
+    last = len(frames) - 1
+    first = True
+    for i, frame in enumerate(frames):
+        flags = zmq.SNDMORE if i < last else 0
+        big = getattr(frame, "nbytes", len(frame)) >= wire.ZERO_COPY_BYTES
+        while True:
+            try:
+                sock.send(frame, flags, copy=not big)
+                break
+            except zmq.Again:
+                # only the first frame waits: HWM counts whole messages
+                if not first or should_stop():
+                    raise TransportError("publish interrupted by shutdown") from None
+        first = False
 
 
 # The receiver side lives in probeless.runtime.receiver; re-exported for existing imports.

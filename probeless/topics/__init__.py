@@ -5,9 +5,9 @@ A running graph is found through its run directory (``$PROBELESS_RUN_DIR`` or
 plan, whose ``launcher_pid`` must still be alive.
 
 The tools subscribe through the runtime's own :class:`~probeless.runtime.transport.Receiver`: its
-thread drains the SUB socket continuously and applies a dropping queue policy, so a tool that is
-slow (a slow terminal) or not reading never pushes back on the graph; publishers are XPUBs with
-NODROP and would wait for a subscriber whose pipe is full. Tool-side drops are counted and
+thread drains the SUB socket continuously and applies a dropping queue policy, and it connects to
+the publisher's lossy socket, so a tool that is slow (a slow terminal) or stopped never pushes back
+on the graph: the publisher drops for that tool alone. Tool-side drops are counted and
 reported separately from messages lost upstream (``header.seq`` gaps). On end of stream the
 receiver closes the socket at once (publishers wait for that before they exit), and every socket
 is opened with linger 0.

@@ -14,6 +14,7 @@ from probeless.errors import ProbelessError
 from probeless.messages.base import Message
 from probeless.runtime.queues import InputQueue
 from probeless.runtime.receiver import InputWire, Receiver
+from probeless.runtime.transport import endpoint_for_policy
 from probeless.topics.catalog import graph_topics
 from probeless.topics.discovery import RunningGraph
 
@@ -23,8 +24,8 @@ _reader_ids = _counter()
 class _TimedQueue(InputQueue):
     """An InputQueue that stores (receive time [ns, monotonic], message) for each message."""
 
-    def push(self, arrival: int, msg: Any, seq: int | None = None) -> bool:
-        return super().push(arrival, (time.monotonic_ns(), msg), seq)
+    def push(self, arrival: int, msg: Any, seq: int | None = None, nbytes: int = 0) -> bool:
+        return super().push(arrival, (time.monotonic_ns(), msg), seq, nbytes)
 
 
 class TopicReader:
@@ -37,7 +38,9 @@ class TopicReader:
     def __init__(self, topics: Iterable[tuple[str, str]], *, policy: str = "drop_oldest", queue_size: int = 100):
         if policy not in ("drop_oldest", "latest"):
             raise ValueError("a tool must never use the block policy: it would hold up the graph")
-        self.wires = [InputWire(topic, endpoint, topic, None) for topic, endpoint in dict(topics).items()]
+        # the lossy socket: a tool that stops reading loses messages, the graph never waits for it
+        self.wires = [InputWire(topic, endpoint_for_policy(endpoint, policy), topic, None)
+                      for topic, endpoint in dict(topics).items()]
         self.cond = threading.Condition()
         self.queues = {w.name: _TimedQueue(w.name, policy, queue_size) for w in self.wires}
         self.zctx: zmq.Context | None = None
@@ -89,7 +92,7 @@ class TopicReader:
             items = []
             for q in self.queues.values():
                 while q.items:
-                    arrival, (recv_ns, msg) = q.items.popleft()
+                    arrival, (recv_ns, msg) = q.pop_item()
                     items.append((arrival, q.name, recv_ns, msg))
         items.sort(key=lambda i: i[0])
         return [i[1:] for i in items]
