@@ -178,3 +178,31 @@ class LoopRelay(Node):
     def close(self):
         if self.params.out:
             Path(self.params.out).write_text(json.dumps(self.counts))
+
+
+class ArrivalLog(Node):
+    """Logs (seq, wall-clock arrival [ns]) per message on any input, and its own last diagnostics; JSON on close."""
+
+    INPUTS = {"*": None}
+
+    @dataclass(frozen=True)
+    class Params:
+        out: str = param()
+        pid_file: str = param("")
+
+    def setup(self):
+        if self.params.pid_file:
+            Path(self.params.pid_file).write_text(str(os.getpid()))
+        self.log: dict[str, list[list[int]]] = {}
+        self.status: dict = {}
+
+    def on_input(self, name, msg):
+        if isinstance(msg, NodeStatus):
+            self.status[msg.node_id] = {i.name: {"received": i.received, "dropped": i.dropped,
+                                                 "seq_gaps": i.seq_gaps, "queued_bytes": i.queued_bytes}
+                                        for i in msg.inputs}
+            return
+        self.log.setdefault(name, []).append([msg.header.seq, time.time_ns()])
+
+    def close(self):
+        Path(self.params.out).write_text(json.dumps({"log": self.log, "status": self.status}))
