@@ -45,7 +45,8 @@ def topic_info(graph: RunningGraph, topic_name: str, *, timeout: float = 2.5) ->
             c = c or next((c for c in st.inputs if c.topic == topic.name), None)
             if c is not None:
                 counters = {"received": c.received, "dropped": c.dropped, "seq_gaps": c.seq_gaps,
-                            "queued": c.queued, "invalid": c.invalid}
+                            "queued": c.queued, "invalid": c.invalid, "queued_bytes": c.queued_bytes,
+                            "publisher_restarts": c.publisher_restarts}
         subs.append({"node": s.node, "input": s.input, "policy": s.policy, "queue_size": s.queue_size,
                      "node_state": st.state if st is not None else None, "counters": counters})
     return {"topic": topic.name, "type": topic.type_name, "declared": topic.declared,
@@ -70,7 +71,9 @@ def print_info(info: dict[str, Any], out: IO[str] | None = None) -> None:
         c = s["counters"]
         if c is not None:
             line += (f"  received {c['received']}  dropped {c['dropped']}  seq_gaps {c['seq_gaps']}"
-                     f"  queued {c['queued']}  invalid {c['invalid']}")
+                     f"  queued {c['queued']} ({c['queued_bytes']} B)  invalid {c['invalid']}")
+            if c["publisher_restarts"]:
+                line += f"  publisher_restarts {c['publisher_restarts']}"
         elif s["node_state"] is None:
             line += f"  (no diagnostics within {info['timeout']:g} s)"
         else:
