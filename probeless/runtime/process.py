@@ -35,7 +35,7 @@ from probeless.runtime.clock import NodeClock
 from probeless.runtime.memwatch import MemoryWatch, rss_bytes
 from probeless.runtime.node import Node, output_type
 from probeless.runtime.params import load_params
-from probeless.runtime.queues import InputQueue
+from probeless.runtime.queues import QUEUE_MAX_BYTES, InputQueue
 from probeless.runtime.receiver import InputWire, Receiver, hello_topic
 from probeless.runtime.registry import resolve_node
 from probeless.runtime.stats import Timings
@@ -80,11 +80,12 @@ class NodeRuntime:
         self.node: Node | None = None
         self.memory, self.memory_warned = MemoryWatch(), False
 
-    def _policy(self, name: str) -> tuple[str, int]:
+    def _policy(self, name: str) -> tuple[str, int, int]:
+        """(policy, queue_size, max_bytes) of an input; ``max_bytes`` from the plan, else the default bound."""
         if name == CLOCK_INPUT:
-            return "block", 64
+            return "block", 64, QUEUE_MAX_BYTES
         spec = next(i for i in self.spec["inputs"] if i["name"] == name)
-        return spec["policy"], spec["queue_size"]
+        return spec["policy"], spec["queue_size"], int(spec.get("max_bytes", QUEUE_MAX_BYTES))
 
     # -- Context API -------------------------------------------------------
     def publish(self, output: str, msg: Message) -> None:
