@@ -27,7 +27,9 @@ def cmd_check(ns: argparse.Namespace) -> int:
     from probeless.launch.launcher import load_checked
 
     graph = load_checked(ns.graph, parse_overrides(ns.args))
-    print(f"{ns.graph}: OK ({len(graph.nodes)} nodes)")
+    for warning in graph.warnings:
+        print(f"warning: {warning.format()}", file=sys.stderr)
+    print(f"{ns.graph}: OK ({len(graph.nodes)} nodes{f', {len(graph.warnings)} warning(s)' if graph.warnings else ''})")
     return 0
 
 
@@ -36,6 +38,8 @@ def cmd_launch(ns: argparse.Namespace) -> int:
     from probeless.launch.launcher import Launcher
 
     graph, clock = prepare_graph(ns, parse_overrides(ns.args))
+    for warning in graph.warnings:
+        print(f"warning: {warning.format()}", file=sys.stderr)
     launcher = Launcher(graph, only=ns.only, duration=ns.duration, ready_timeout=ns.ready_timeout, clock_node=clock)
     return launcher.run()
 
@@ -123,6 +127,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_launch)
 
     _add_bag_parsers(sub)
+
+    from probeless.runtime.keys import add_keys_parser
+
+    add_keys_parser(sub)
 
     c = sub.add_parser("test", help="lockstep replay through a graph; compare its outputs with a golden recording")
     c.add_argument("graph")

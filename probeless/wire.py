@@ -24,6 +24,7 @@ from probeless.messages.base import WIRE_DTYPES, FieldSpec, Message, Struct, loo
 MAX_MESSAGE_BYTES = 512 * 1024 * 1024   # default cap on one message, all frames together
 ZERO_COPY_BYTES = 64 * 1024             # frames at least this large are sent without copying
 MAX_RANK = 16
+MAX_DIM = 1 << 32                       # largest array dimension on the wire
 EOS = b""
 _DTYPES = {s: np.dtype(s) for s in WIRE_DTYPES}  # parsed once: dtype parsing is slow on a cold path
 
@@ -67,11 +68,21 @@ def decode(frames: Sequence[Any], *, expected: str | None = None,
     """
     try:
         return _decode(frames, expected, max_bytes)
-    except SchemaError:
-        raise
+    except SchemaError as exc:
+        if str(exc).startswith("topic "):
+            raise
+        raise SchemaError(f"{_where(frames)}{exc}") from None
     except (ValueError, TypeError, KeyError, IndexError, OverflowError, UnicodeDecodeError,
             msgpack.exceptions.ExtraData, RecursionError, MemoryError) as exc:
-        raise SchemaError(f"malformed message: {type(exc).__name__}: {exc}") from None
+        raise SchemaError(f"{_where(frames)}malformed message: {type(exc).__name__}: {exc}") from None
+
+
+def _where(frames: Sequence[Any]) -> str:
+    """``topic 'name': `` for error messages, when the topic frame is readable."""
+    try:
+        return f"topic {bytes(_view(frames[0])[:200]).decode('utf-8')!r}: "
+    except (IndexError, TypeError, ValueError):
+        return ""
 
 
 def _decode(frames: Sequence[Any], expected: str | None, max_bytes: int):
@@ -180,7 +191,7 @@ def _array_from_wire(spec, desc: Any, buffers, used, where: str, dims: dict[str,
     if dt is None:
         raise SchemaError(f"{where}: dtype {dtype!r} not allowed on the wire")
     if not (isinstance(shape, list) and len(shape) <= MAX_RANK
-            and all(type(d) is int and d >= 0 for d in shape)):
+            and all(type(d) is int and 0 <= d <= MAX_DIM for d in shape)):
         raise SchemaError(f"{where}: shape {shape!r} malformed")
     if dt not in spec.dtype_set:
         raise SchemaError(f"{where}: dtype {dt.name} not in {spec.describe()}")
@@ -194,4 +205,7 @@ def _array_from_wire(spec, desc: Any, buffers, used, where: str, dims: dict[str,
         raise SchemaError(f"{where}: buffer has {buf.nbytes} bytes, shape {shape} of {dt.name} needs "
                           f"{math.prod(shape) * dt.itemsize}")
     used.add(index)
-    return np.frombuffer(buf, dtype=dt).reshape(shape)
+    try:
+        return np.frombuffer(buf, dtype=dt).reshape(shape)
+    except ValueError as exc:  # e.g. an empty array whose other dimensions overflow numpy's size
+        raise SchemaError(f"{where}: shape {shape} not representable: {exc}") from None

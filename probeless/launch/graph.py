@@ -17,6 +17,8 @@
         restart: on-failure                     # never (default) | on-failure
         max_restarts: 3
         restart_backoff_s: 0.5
+    security:                                   # optional, top-level file only: CURVE on every tcp socket
+      curve: {keys: keys}                       # key directory (``probeless keys generate``), relative to this file
 
 Substitutions in any string: ``$(arg NAME)``, ``$(env NAME)`` / ``$(env NAME default)`` and
 ``$(dirname)`` (this file's directory). A string that is exactly one substitution keeps the
@@ -37,7 +39,7 @@ from probeless.launch.args import Substituter, resolve_args
 from probeless.launch.yamlload import LineDict, LineList, load_yaml
 from probeless.runtime.queues import POLICIES
 
-TOP_KEYS = {"description", "args", "hosts", "include", "nodes"}
+TOP_KEYS = {"description", "args", "hosts", "include", "nodes", "security"}
 NODE_KEYS = {"id", "node", "inputs", "outputs", "params", "restart", "max_restarts", "restart_backoff_s",
              "host", "description"}
 INPUT_KEYS = {"source", "queue_size", "policy", "feedback"}
@@ -90,6 +92,9 @@ class Graph:
     hosts: dict[str, dict] = field(default_factory=dict)
     args: dict[str, Any] = field(default_factory=dict)
     errors: list[GraphError] = field(default_factory=list)
+    warnings: list[GraphError] = field(default_factory=list)  # filled by validate(): printed, not fatal
+    curve_keys: Path | None = None  # key directory of ``security: {curve: {keys: DIR}}``
+    security_line: int = 0          # line of the ``security:`` block (for messages)
     node_classes: dict[str, type] = field(default_factory=dict)  # node id -> Node class, filled by validate()
 
 
@@ -120,6 +125,9 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
     subst = Substituter(args, path.parent, err)
     for name, host in (_mapping(doc, "hosts", err) or {}).items():
         graph.hosts[str(name)] = subst(host, doc.line_of("hosts"))
+    if "security" in doc:
+        _parse_security(subst(doc["security"], doc.line_of("security")), doc.line_of("security"), path, graph,
+                        err, is_root=not stack)
     for i, inc in enumerate(_sequence(doc, "include", err)):
         line = doc["include"].lines[i]
         _include(subst(inc, line), line, path, ns, graph, stack + (path.resolve(),), err)
@@ -132,6 +140,21 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
                 decl.line, node_id=decl.id, key="id")
             continue
         graph.nodes[decl.id] = decl
+
+
+def _parse_security(block: Any, line: int, path: Path, graph: Graph, err, is_root: bool) -> None:
+    """``security: {curve: {keys: DIR}}``: DIR relative to the graph file."""
+    if not is_root:
+        err("'security' belongs in the top-level graph file, not in an include", line, key="security")
+        return
+    curve = block.get("curve") if isinstance(block, dict) else None
+    if not isinstance(block, dict) or set(block) != {"curve"} or not isinstance(curve, dict) \
+            or set(curve) != {"keys"} or not isinstance(curve["keys"], str) or not curve["keys"]:
+        err("'security' must be {curve: {keys: DIR}} (DIR from `probeless keys generate DIR`)", line,
+            key="security")
+        return
+    graph.curve_keys = (path.parent / curve["keys"]).resolve()
+    graph.security_line = curve.line_of("keys") if isinstance(curve, LineDict) else line
 
 
 def _defaults(args: dict, overrides: dict, doc: LineDict, path: Path, err) -> dict:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from probeless.launch.graph import Graph
+from probeless.launch.secure import curve_plan
 from probeless.launch.validate import host_endpoint, split_source
 from probeless.runtime.node import output_type
 from probeless.runtime.transport import endpoint_for_policy, lossy_endpoint
@@ -80,4 +81,4 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
             out.setdefault("subscribers", 0)
     return {"file": graph.file, "args": graph.args, "run_dir": str(run_dir), "launcher_pid": os.getpid(),
             "started_ns": time.time_ns(),
-            "control": f"ipc://{run_dir}/control", "nodes": nodes}
+            "control": f"ipc://{run_dir}/control", "nodes": nodes, "curve": curve_plan(graph, nodes)}

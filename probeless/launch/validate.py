@@ -1,4 +1,4 @@
-"""Graph validation without starting anything: node types, params, wiring, types, hosts, cycles."""
+"""Graph validation without starting anything: node types, params, wiring, types, hosts, cycles, security."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from probeless.runtime.registry import resolve_node
 
 
 def validate(graph: Graph) -> list[GraphError]:
-    """All errors of a parsed graph (parse errors first). Also fills ``node_classes`` for the plan."""
+    """All errors of a parsed graph (parse errors first). Also fills ``node_classes`` for the plan and
+    ``warnings`` (e.g. plain TCP without CURVE)."""
     errors = list(graph.errors)
     classes: dict[str, type] = {}
     for decl in graph.nodes.values():
@@ -31,7 +32,20 @@ def validate(graph: Graph) -> list[GraphError]:
         errors += _check_inputs(graph, decl, cls, classes)
         errors += _check_host(graph, decl)
     errors += _check_cycles(graph)
+    errors += _check_security(graph)
     graph.node_classes = classes
+    return errors
+
+
+def _check_security(graph: Graph) -> list[GraphError]:
+    """TCP without CURVE (warnings; an error on every interface), or unusable CURVE key files."""
+    from probeless.launch.secure import check_security  # secure.py builds on this module
+
+    endpoints = {}
+    for decl in graph.nodes.values():
+        if decl.host is None or decl.host in graph.hosts or _literal_host(decl.host):
+            endpoints[decl.id] = host_endpoint(graph, decl)
+    errors, graph.warnings = check_security(graph, endpoints)
     return errors
 
 
@@ -123,7 +137,8 @@ def host_endpoint(graph: Graph, decl: NodeDecl) -> str | None:
         return f"tcp://{literal[0]}:{literal[1]}"
     host = graph.hosts[decl.host]
     same = [d.id for d in graph.nodes.values() if d.host == decl.host]
-    return f"tcp://{host.get('address', '127.0.0.1')}:{int(host.get('port_base', 7400)) + same.index(decl.id)}"
+    # two ports per node: PORT (lossless, for 'block' inputs) and PORT+1 (lossy: latest, drop_oldest, tools)
+    return f"tcp://{host.get('address', '127.0.0.1')}:{int(host.get('port_base', 7400)) + 2 * same.index(decl.id)}"
 
 
 def _check_cycles(graph: Graph) -> list[GraphError]:

@@ -38,6 +38,7 @@ from probeless.runtime.params import load_params
 from probeless.runtime.queues import QUEUE_MAX_BYTES, InputQueue
 from probeless.runtime.receiver import InputWire, Receiver, hello_topic
 from probeless.runtime.registry import resolve_node
+from probeless.runtime.security import node_curve
 from probeless.runtime.stats import Timings
 from probeless.runtime.timers import TimerSet
 from probeless.runtime.transport import Publisher
@@ -65,6 +66,7 @@ class NodeRuntime:
         self.busy = False
         self.state = "starting"
         self.zctx = zmq.Context()
+        self.curve = node_curve(plan, node_id)  # None unless the graph asks for CURVE
         self.node_cls = resolve_node(spec["node"])
         self.wires = [InputWire(i["name"], i["endpoint"], i["topic"], i.get("type_name"),
                                 raw=getattr(self.node_cls, "RAW_INPUTS", False))
@@ -137,7 +139,8 @@ class NodeRuntime:
         try:
             params = load_params(self.node_cls.Params, self.spec.get("params"), node_id=self.node_id,
                                  file=self.spec.get("file"), line=self.spec.get("line"))
-            self.publisher = Publisher(self.zctx, self.spec["endpoint"], self.node_id, self.clock.now_ns)
+            self.publisher = Publisher(self.zctx, self.spec["endpoint"], self.node_id, self.clock.now_ns,
+                                       curve=self.curve)
             self.node = self.node_cls(self, params)
             with self.timed("setup"):
                 self.node.setup()
@@ -167,7 +170,7 @@ class NodeRuntime:
     def _start_receiver(self) -> None:
         control = (self.control_endpoint, self.node_id) if self.control_endpoint else None
         self.receiver = Receiver(self.zctx, self.wires, self.queues, self.cond, self.wake_endpoint,
-                                 control=control, status=self._status, node_id=self.node_id)
+                                 control=control, status=self._status, node_id=self.node_id, curve=self.curve)
         self.wake_tx = self.zctx.socket(zmq.PAIR)
         self.wake_tx.connect(self.wake_endpoint)
         self.receiver.start()
@@ -325,6 +328,8 @@ class NodeRuntime:
         if self.node is not None:
             try:
                 self.node.close()
+            except TransportError as exc:  # a last publish from close() cut short by the shutdown: not a failure
+                self.log.warning("close(): %s", exc)
             except ProbelessError as exc:
                 self.log.error("close() failed: %s", self._one_line(exc))
                 code = 1
@@ -339,6 +344,8 @@ class NodeRuntime:
             self.wake_tx.close(0)
         if hasattr(self, "publisher"):
             self.publisher.close()
+        if self.curve is not None:
+            self.curve.stop()
         self.zctx.term()
         return code
 

@@ -21,6 +21,7 @@ import zmq
 from probeless import wire
 from probeless.errors import SchemaError
 from probeless.runtime.queues import InputQueue
+from probeless.runtime.security import NodeCurve
 
 log = logging.getLogger("probeless.receiver")
 BLOCK_RECV_HWM = 4
@@ -81,7 +82,7 @@ class Receiver(threading.Thread):
     def __init__(self, zctx: zmq.Context, wires: list[InputWire], queues: dict[str, InputQueue],
                  cond: threading.Condition, wake_endpoint: str, max_bytes: int = wire.MAX_MESSAGE_BYTES,
                  control: tuple[str, str] | None = None, status: Callable[[], dict] | None = None,
-                 node_id: str = ""):
+                 node_id: str = "", curve: NodeCurve | None = None):
         super().__init__(name="probeless-receiver", daemon=True)
         self.cond, self.queues, self.max_bytes = cond, queues, max_bytes
         self.stopping = False
@@ -105,6 +106,8 @@ class Receiver(threading.Thread):
             s.setsockopt(zmq.RCVHWM, BLOCK_RECV_HWM if queues[w.name].policy == "block" else DROP_RECV_HWM)
             s.setsockopt(zmq.LINGER, 0)
             s.setsockopt(zmq.MAXMSGSIZE, max_bytes)  # refuse oversized frames before allocating them
+            if curve is not None:
+                curve.client(s, w.endpoint)  # CURVE client on tcp (security.py)
             s.connect(w.endpoint)
             s.setsockopt(zmq.SUBSCRIBE, w.topic.encode())
             s.setsockopt(zmq.SUBSCRIBE, hello_topic(node_id, w.name))  # names this subscriber to the barrier

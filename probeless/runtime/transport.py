@@ -29,6 +29,7 @@ import zmq
 from probeless import wire
 from probeless.errors import TransportError
 from probeless.messages.base import Message
+from probeless.runtime.security import NodeCurve
 
 log = logging.getLogger("probeless.transport")
 SEND_HWM = 16
@@ -51,7 +52,8 @@ def endpoint_for_policy(endpoint: str, policy: str) -> str:
 class _Socket:
     """One XPUB of a publisher with the subscriptions it has seen."""
 
-    def __init__(self, zctx: zmq.Context, endpoint: str, publisher_id: str, lossless: bool):
+    def __init__(self, zctx: zmq.Context, endpoint: str, publisher_id: str, lossless: bool,
+                 curve: NodeCurve | None = None):
         self.endpoint, self.lossless = endpoint, lossless
         self.sock = zctx.socket(zmq.XPUB)
         self.sock.setsockopt(zmq.XPUB_NODROP, 1 if lossless else 0)
@@ -59,6 +61,8 @@ class _Socket:
         self.sock.setsockopt(zmq.SNDHWM, SEND_HWM)
         self.sock.setsockopt(zmq.SNDTIMEO, 100)
         self.sock.setsockopt(zmq.LINGER, 2000)
+        if curve is not None:
+            curve.server(zctx, self.sock, endpoint)  # CURVE server on tcp (security.py)
         try:
             self.sock.bind(endpoint)
         except zmq.ZMQError as exc:
@@ -91,13 +95,13 @@ class Publisher:
     """One node's outputs: a lossless and a lossy XPUB, per-topic seq, subscription counts."""
 
     def __init__(self, zctx: zmq.Context, endpoint: str, publisher_id: str,
-                 now_ns: Callable[[], int] = time.time_ns):
+                 now_ns: Callable[[], int] = time.time_ns, curve: NodeCurve | None = None):
         self.publisher_id = publisher_id
         self.now_ns = now_ns  # publish time: wall clock, or recorded time on replay (deterministic)
-        self.lossy = _Socket(zctx, lossy_endpoint(endpoint), publisher_id, lossless=False)
+        self.lossy = _Socket(zctx, lossy_endpoint(endpoint), publisher_id, lossless=False, curve=curve)
         try:
-            self.lossless = _Socket(zctx, endpoint, publisher_id, lossless=True)
-        except TransportError:
+            self.lossless = _Socket(zctx, endpoint, publisher_id, lossless=True, curve=curve)
+        except Exception:  # a bind or key error: leave no socket behind
             self.lossy.sock.close(0)
             raise
         self.socks = (self.lossy, self.lossless)  # lossy first: a waiting lossless send never delays them

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from typing import IO
 
+from probeless.runtime.security import tool_curve
 from probeless.topics.catalog import _import_publisher, find_topic
 from probeless.topics.discovery import RunningGraph, _launcher_gone
 from probeless.topics.formatting import format_message
@@ -30,7 +31,8 @@ def echo(graph: RunningGraph, topic_name: str, *, count: int | None = None, arra
             return 0
     except KeyboardInterrupt:
         return 0
-    with TopicReader([(topic.name, topic.endpoint)], policy=policy, queue_size=queue_size) as reader:
+    with TopicReader([(topic.name, topic.endpoint)], policy=policy, queue_size=queue_size,
+                     curve=tool_curve(graph.plan)) as reader:
         try:
             while reason is None and (count is None or printed < count):
                 _suspend_point(reader, err)

@@ -10,6 +10,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from probeless.runtime.security import tool_curve
 from probeless.topics.catalog import _import_publisher, find_topic
 from probeless.topics.discovery import RunningGraph, _launcher_gone
 from probeless.topics.reader import TopicReader, wait_for_start
@@ -89,7 +90,8 @@ def hz(graph: RunningGraph, topic_name: str, *, window: int = 100, duration: flo
     last_total = 0
     check: dict = {}
     reason = None
-    with TopicReader([(topic.name, topic.endpoint)], policy="drop_oldest", queue_size=queue_size) as reader:
+    with TopicReader([(topic.name, topic.endpoint)], policy="drop_oldest", queue_size=queue_size,
+                     curve=tool_curve(graph.plan)) as reader:
         def report() -> dict[str, Any]:
             c = reader.counters(topic.name)
             return dict(stats.report(), seq_gaps=c["seq_gaps"], tool_dropped=c["dropped"], invalid=c["invalid"])

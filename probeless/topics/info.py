@@ -6,6 +6,7 @@ import sys
 import time
 from typing import IO, Any
 
+from probeless.runtime.security import tool_curve
 from probeless.topics.catalog import find_topic, graph_topics
 from probeless.topics.discovery import RunningGraph
 from probeless.topics.reader import TopicReader, wait_for_start
@@ -23,7 +24,7 @@ def topic_info(graph: RunningGraph, topic_name: str, *, timeout: float = 2.5) ->
     topics = graph_topics(graph)
     if any(topics[t].expected for t in diag if t in topics):
         wait_for_start(graph, timeout=timeout)
-    with TopicReader(diag.items(), policy="latest", queue_size=1) as reader:
+    with TopicReader(diag.items(), policy="latest", queue_size=1, curve=tool_curve(graph.plan)) as reader:
         while len(statuses) < len(diag) and time.monotonic() < deadline:
             for name, _, msg in reader.take(min(0.1, max(0.0, deadline - time.monotonic()))):
                 statuses[name.rpartition("/")[0]] = msg

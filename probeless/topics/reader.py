@@ -14,6 +14,7 @@ from probeless.errors import ProbelessError
 from probeless.messages.base import Message
 from probeless.runtime.queues import InputQueue
 from probeless.runtime.receiver import InputWire, Receiver
+from probeless.runtime.security import NodeCurve, tool_curve
 from probeless.runtime.transport import endpoint_for_policy
 from probeless.topics.catalog import graph_topics
 from probeless.topics.discovery import RunningGraph
@@ -35,7 +36,8 @@ class TopicReader:
     for any time without ever holding up a publisher; what it misses is counted in ``dropped``.
     """
 
-    def __init__(self, topics: Iterable[tuple[str, str]], *, policy: str = "drop_oldest", queue_size: int = 100):
+    def __init__(self, topics: Iterable[tuple[str, str]], *, policy: str = "drop_oldest", queue_size: int = 100,
+                 curve: NodeCurve | None = None):
         if policy not in ("drop_oldest", "latest"):
             raise ValueError("a tool must never use the block policy: it would hold up the graph")
         # the lossy socket: a tool that stops reading loses messages, the graph never waits for it
@@ -44,6 +46,7 @@ class TopicReader:
         self.cond = threading.Condition()
         self.queues = {w.name: _TimedQueue(w.name, policy, queue_size) for w in self.wires}
         self.zctx: zmq.Context | None = None
+        self.curve = curve  # the graph's CURVE keys (tool_curve) when its tcp sockets use CURVE
         self.suspended = False
         self._open()
 
@@ -53,7 +56,7 @@ class TopicReader:
         self.wake_tx = None
         try:
             wake = f"inproc://probeless-topic-tool-{os.getpid()}-{next(_reader_ids)}"
-            self.receiver = Receiver(self.zctx, self.wires, self.queues, self.cond, wake)
+            self.receiver = Receiver(self.zctx, self.wires, self.queues, self.cond, wake, curve=self.curve)
             self.wake_tx = self.zctx.socket(zmq.PAIR)
             self.wake_tx.setsockopt(zmq.LINGER, 0)
             self.wake_tx.connect(wake)
@@ -157,7 +160,7 @@ def wait_for_start(graph: RunningGraph, *, timeout: float | None = None, err: IO
         return True  # every node is monitored: nothing harmless to listen to; accept the small race
     t0 = time.monotonic()
     noted = False
-    with TopicReader(safe, policy="latest", queue_size=1) as reader:
+    with TopicReader(safe, policy="latest", queue_size=1, curve=tool_curve(graph.plan)) as reader:
         while True:
             if reader.take(0.1):
                 return True

@@ -1,0 +1,38 @@
+"""Helpers of the fault-injection suite: write a graph, launch it as a real CLI process with a timeout."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+TESTS_DIR = Path(__file__).resolve().parent
+ROOT = TESTS_DIR.parent.parent
+
+
+def node_env() -> dict:
+    """Environment of node processes: the test nodes (tests/faults/injectors.py, tests/nodes_for_tests.py)."""
+    paths = [str(TESTS_DIR), str(TESTS_DIR.parent), os.environ.get("PYTHONPATH", "")]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in paths if p)}
+
+
+def write_graph(tmp_path: Path, text: str, name: str = "graph.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def launch_graph(path: Path, *args: str, timeout_s: float = 120.0) -> tuple[int, str]:
+    """``probeless launch PATH ARGS`` in a subprocess; (exit code, output). Fails the test on a hang."""
+    proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(path), *args], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=node_env(),
+                            start_new_session=True)
+    try:
+        out, _ = proc.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, _ = proc.communicate()
+        raise AssertionError(f"probeless launch {path} hung for more than {timeout_s} s:\n{out}") from None
+    return proc.returncode, out
