@@ -4,16 +4,22 @@ Inputs are raw (nothing decoded but the envelope), any name, any type; the launc
 ``policy: block`` input per recorded topic, so the recorder never drops: if it cannot keep up,
 its publishers wait. Losses upstream still show as seq gaps; they are printed and stored in the
 file as an INCOMPLETE report (metadata ``probeless.incomplete``).
+
+When a write fails (disk full, I/O error) the recorder logs one error naming the file, stops recording (the file
+keeps its complete chunks and is sealed where space allows, see :class:`BagWriter`) and goes on taking its inputs
+without storing them, so the rest of the graph keeps running; at the end it reports how many messages were not
+recorded and the node exits with an error. The file's metadata never holds environment variables or secrets
+(:func:`probeless.provenance.recording_metadata`).
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 
 from probeless import __version__
-from probeless.bag.writer import BagWriter
-from probeless.provenance import git_revision
+from probeless.bag.writer import INCOMPLETE, BagWriter
+from probeless.errors import BagError
+from probeless.provenance import recording_metadata
 from probeless.runtime import Node, param
 from probeless.runtime.receiver import RawMessage
 
@@ -54,13 +60,13 @@ class BagRecorder(Node):
     def setup(self) -> None:
         p = self.params
         plan = getattr(self.ctx, "plan", {}) or {}
-        meta = {"plan": json.dumps(plan), "version": __version__, "git_revision": git_revision(),
-                "command": p.command, "graph_file": str(plan.get("file", ""))}
+        meta = recording_metadata(plan, p.command, __version__)  # secrets redacted, no environment
         self.writer = BagWriter(p.path, compression=p.compression, force=p.force, direct_io=p.direct_io,
                                 max_size=int(p.max_size_mb * 1e6) or None, max_duration_s=p.max_duration_s or None,
                                 metadata={"probeless.graph": meta})
         self.seqs = SeqTracker()
         self.count = 0
+        self.lost = 0   # messages not recorded after a failed write
         self.step: list[tuple[int, str, int, RawMessage]] = []
 
     def on_input(self, name: str, msg: RawMessage) -> None:
@@ -81,9 +87,19 @@ class BagRecorder(Node):
         self.step = []
 
     def _write(self, msg: RawMessage, log_ns: int) -> None:
-        # the zmq frames are copied once, straight into the chunk in progress; then they can go
-        self.writer.write(msg.topic, msg.type_name, msg.version, msg.frames, log_time_ns=log_ns,
-                          publish_time_ns=msg.publish_ns, sequence=msg.seq)
+        if self.writer.failed:
+            self.lost += 1  # recording stopped (disk full, I/O error): keep draining so the graph runs on
+            return
+        try:
+            # the zmq frames are copied once, straight into the chunk in progress; then they can go
+            self.writer.write(msg.topic, msg.type_name, msg.version, msg.frames, log_time_ns=log_ns,
+                              publish_time_ns=msg.publish_ns, sequence=msg.seq)
+        except BagError:
+            if not self.writer.failed:
+                raise  # not a failed write (an unknown type, a changed topic type): the recorder's own error
+            self.lost += 1
+            self.ctx.log.error("%s; the graph keeps running, later messages are not recorded", self.writer.failed)
+            return
         self.count += 1
 
     def close(self) -> None:
@@ -93,5 +109,7 @@ class BagRecorder(Node):
         report = self.seqs.report()
         for topic, text in report.items():
             self.ctx.log.warning("%s: %s", topic, text)
-        self.writer.close(extra_metadata={"probeless.incomplete": report} if report else None)
+        if self.writer.failed:
+            raise BagError(f"{self.writer.failed}; {self.lost} message(s) after the failure were not recorded")
+        self.writer.close(extra_metadata={INCOMPLETE: report} if report else None)
         self.ctx.log.info("recorded %d message(s) to %s", self.count, ", ".join(map(str, self.writer.paths)))

@@ -9,6 +9,7 @@ import sys
 import threading
 from typing import Any
 
+from probeless.bag.writer import RECORDER_QUEUE_BYTES, input_queue_bytes
 from probeless.errors import BagError
 from probeless.launch.plan import new_run_dir
 from probeless.launch.replay import RECORDER_ID
@@ -17,11 +18,12 @@ from probeless.topics import graph_topics, select_graph
 
 
 def record_running_graph(path: str, topics: list[str] | None, params: dict[str, Any], *,
-                         graph_dir: str | None = None, duration: float | None = None) -> int:
+                         graph_dir: str | None = None, duration: float | None = None,
+                         queue_bytes: int = RECORDER_QUEUE_BYTES) -> int:
     """Record ``topics`` (default: all) of the running graph until it ends, SIGINT/SIGTERM or ``duration``.
 
     The recorder joins late, so it records from now on (no readiness barrier), losslessly:
-    its inputs use ``policy: block``.
+    its inputs use ``policy: block``, their queues together bounded by ``queue_bytes``.
     """
     graph = select_graph(graph_dir)
     available = graph_topics(graph)
@@ -38,7 +40,8 @@ def record_running_graph(path: str, topics: list[str] | None, params: dict[str, 
         "endpoint": f"ipc://{run_dir}/recorder.pub", "outputs": {},
         "inputs": [{"name": t, "topic": t, "endpoint": available[t].endpoint, "type_name": None,
                     "source_node": available[t].publisher, "output": t.rsplit("/", 1)[-1],
-                    "policy": "block", "queue_size": 256} for t in chosen]}
+                    "policy": "block", "queue_size": 256, "max_bytes": input_queue_bytes(len(chosen), queue_bytes)}
+                   for t in chosen]}
     runtime = NodeRuntime(plan, RECORDER_ID, "inproc://wake-recorder")
 
     def stop(*_: Any) -> None:

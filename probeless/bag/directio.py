@@ -44,6 +44,33 @@ def _write_at(fd: int, parts: Sequence[Any], offset: int) -> None:
             views[0] = views[0][done:]
 
 
+def cut(fd: int, length: int) -> bool:
+    """Truncate the file ``fd`` to ``length`` bytes (possible on a full disk: it frees space); False if refused."""
+    try:
+        os.ftruncate(fd, length)
+        return True
+    except OSError:
+        return False
+
+
+def seal(fd: int, length: int, tail: bytes) -> bool:
+    """After a failed append: cut the file ``fd`` to its first ``length`` bytes (complete records), then try to
+    write ``tail`` (e.g. an MCAP data end, footer and magic) after them through the page cache. Returns whether
+    the tail is in the file; when it does not fit, the file is left ending at ``length``."""
+    try:
+        flags = fcntl.fcntl(fd, fcntl.F_GETFL)
+        if hasattr(os, "O_DIRECT") and flags & os.O_DIRECT:
+            fcntl.fcntl(fd, fcntl.F_SETFL, flags & ~os.O_DIRECT)  # the tail is small and unaligned
+        if not cut(fd, length):
+            return False
+        _write_at(fd, [tail], length)
+        os.fsync(fd)
+        return True
+    except OSError:
+        cut(fd, length)
+        return False
+
+
 class AppendFile:
     """Appends to the open file ``fd`` from offset 0; ``direct`` asks for ``O_DIRECT`` where possible."""
 
@@ -70,7 +97,17 @@ class AppendFile:
         return on
 
     def write(self, parts: Sequence[Any]) -> int:
-        """Append ``parts`` (bytes-like); returns the number of bytes appended."""
+        """Append ``parts`` (bytes-like); returns the number of bytes appended.
+
+        A failed write (disk full, I/O error) cuts the file back to the bytes appended before it, so the file
+        still ends with a complete record, and raises the OSError."""
+        try:
+            return self._append(parts)
+        except OSError:
+            cut(self.fd, self.pos)
+            raise
+
+    def _append(self, parts: Sequence[Any]) -> int:
         n = sum(memoryview(p).nbytes for p in parts)
         if not self.direct:
             _write_at(self.fd, parts, self.pos)

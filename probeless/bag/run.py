@@ -16,6 +16,7 @@ from probeless.launch.graph import Graph
 from probeless.launch.launcher import Launcher, load_checked
 from probeless.launch.replay import PLAYER_ID, add_player, add_player_node, add_recorder, parse_remaps
 from probeless.launch.validate import validate
+from probeless.provenance import redact_argv
 
 
 def add_replay_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
@@ -44,7 +45,7 @@ def _player_params(ns: argparse.Namespace) -> dict:
 
 def _recorder_params(ns: argparse.Namespace) -> dict:
     return {"compression": ns.compression, "max_size_mb": ns.max_size, "max_duration_s": ns.max_duration,
-            "force": ns.force, "command": " ".join(shlex.quote(a) for a in sys.argv)}
+            "force": ns.force, "command": " ".join(shlex.quote(a) for a in redact_argv(sys.argv))}
 
 
 def _refuse_overwrite(path: str, force: bool) -> None:

@@ -8,22 +8,37 @@ compressed and written by a background thread).
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from mcap.records import Channel, Schema
+from mcap.records import Channel, DataEnd, Footer, Metadata, Schema
+from mcap.writer import MCAP0_MAGIC
 
 from probeless.bag.chunks import COMPRESSIONS, MESSAGE_HEADER, payload_size
+from probeless.bag.directio import seal
 from probeless.bag.format import MESSAGE_ENCODING, PROFILE, SCHEMA_ENCODING, peek
-from probeless.bag.mcapfile import McapFile
+from probeless.bag.mcapfile import McapFile, record_bytes
 from probeless.bag.schema import json_schema
 from probeless.errors import BagError, SchemaError
 from probeless.messages.base import lookup
+from probeless.provenance import redact
+
+INCOMPLETE = "probeless.incomplete"  # metadata: what is missing from the recording (read by bag info)
 
 DEFAULT_CHUNK_SIZE = 4 * 1024 * 1024
+RECORDER_QUEUE_BYTES = 256 << 20  # a recorder's block input queues together hold at most this [bytes]
+
+
+def input_queue_bytes(n_inputs: int, total: int = RECORDER_QUEUE_BYTES) -> int:
+    """The byte bound of each of a recorder's ``n_inputs`` input queues (plan key ``max_bytes``), so that together
+    they hold at most ``total``. A full queue refuses messages (``policy: block``: the publisher waits); an empty
+    one still takes a single larger message. The writer's own memory is bounded too: 3 chunk buffers of
+    ``chunk_size`` plus one message, and one staging buffer of a chunk."""
+    return max(1 << 20, total // max(1, n_inputs))
 
 
 def _library() -> str:
@@ -58,9 +73,16 @@ def recording_paths(paths: str | Path | Sequence[str | Path]) -> list[Path]:
 
 
 def _check_metadata(name: str, data: Mapping[str, str]) -> dict[str, str]:
+    """The record's strings, values of secret-looking environment variables taken out (never stored)."""
     if not isinstance(name, str) or not all(isinstance(k, str) and isinstance(v, str) for k, v in data.items()):
         raise BagError(f"metadata {name!r}: names, keys and values must all be strings")
-    return dict(data)
+    return redact(dict(data))
+
+
+def _why(exc: OSError) -> str:
+    """The reason of a failed write, saying "disk full" when it is."""
+    why = exc.strerror or str(exc)
+    return f"{why} (disk full)" if exc.errno in (errno.ENOSPC, errno.EDQUOT) else why
 
 
 class BagWriter:
@@ -116,6 +138,7 @@ class BagWriter:
         self._mcap: McapFile | None = None
         self._file: Any = None
         self._closed = False
+        self.failed = ""        # why recording stopped early (a failed write), "" while all is well
         self.message_count = 0
         self._prepare()
         self._open_part()
@@ -149,7 +172,7 @@ class BagWriter:
         except FileExistsError:
             raise BagError(f"{name} already exists; pass --force to overwrite it") from None
         except OSError as exc:
-            raise BagError(f"cannot create {name}: {exc.strerror or exc}") from None
+            raise self._stop(f"cannot create {name}: {_why(exc)}") from None
         self._paths.append(name)
         try:
             self._mcap = McapFile(self._file, compression=self._compression, chunk_size=self._chunk_size,
@@ -158,7 +181,7 @@ class BagWriter:
                 self._mcap.add_metadata(meta_name, data)
         except OSError as exc:
             self._file.close()
-            raise BagError(f"cannot write {name}: {exc.strerror or exc}") from None
+            raise self._stop(f"cannot write {name}: {_why(exc)}") from None
         self._channels: dict[str, int] = {}
         self._schemas: dict[str, int] = {}
         self._part_messages = 0
@@ -167,14 +190,54 @@ class BagWriter:
 
     def _finish_part(self, extra: Mapping[str, Mapping[str, str]] | None = None) -> None:
         try:
-            for meta_name, data in (extra or {}).items():
-                self._mcap.add_metadata(meta_name, data)
-            self._mcap.finish()
-            os.fsync(self._file.fileno())  # a finished recording is on disk, not only in the page cache
-        except OSError as exc:
-            raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
+            try:
+                for meta_name, data in (extra or {}).items():
+                    self._mcap.add_metadata(meta_name, data)
+            except OSError as exc:
+                raise self._fail(exc) from None
+            try:
+                self._mcap.finish()
+            except OSError as exc:
+                raise self._fail(exc, stopped=True) from None
+            try:
+                os.fsync(self._file.fileno())  # a finished recording is on disk, not only in the page cache
+            except OSError as exc:
+                raise BagError(f"cannot write {self._paths[-1]}: {_why(exc)}") from None
         finally:
             self._file.close()
+
+    def _stop(self, why: str) -> BagError:
+        """A new part could not be started: recording stops (the parts before are complete)."""
+        self._closed = True
+        self.failed = f"{why}; recording stopped"
+        return BagError(self.failed)
+
+    def _fail(self, exc: OSError, stopped: bool = False) -> BagError:
+        """Stop recording after a failed write (disk full, I/O error); returns the error to raise.
+
+        Nothing more of the recording is written: the writer thread stops (``stopped``: it has already), the
+        file is cut back to its last complete record (the chunks written whole) and, where the space allows,
+        sealed with an ``probeless.incomplete`` metadata record, a data end and a footer without summary, so
+        every MCAP reader reads it to the end. Without room for those ~300 bytes it ends at its last complete
+        record, which our reader reads as a truncated recording.
+        """
+        self._closed = True
+        path = self._paths[-1]
+        why = _why(exc)
+        if not stopped:
+            try:
+                self._mcap.finish()  # raises the writer thread's error and stops the thread
+                self.failed = f"cannot write {path}: {why}"  # it did not: the file is complete after all
+                return BagError(self.failed)
+            except Exception:  # noqa: BLE001 - the first error is the one reported
+                pass
+        note = f"recording stopped early: cannot write {path}: {why}; later messages were not recorded"
+        tail = record_bytes(Metadata(name=INCOMPLETE, metadata={"recording": note}), DataEnd(data_section_crc=0),
+                            Footer(summary_start=0, summary_offset_start=0, summary_crc=0)) + MCAP0_MAGIC
+        sealed = seal(self._file.fileno(), self._mcap.written, tail)
+        self.failed = (f"cannot write {path}: {why}; recording stopped, the file keeps its complete chunks"
+                       + ("" if sealed else " (no room left for its footer)"))
+        return BagError(self.failed)
 
     def _channel(self, topic: str, type_name: str, version: int) -> int:
         known = self._topic_types.get(topic)
@@ -231,7 +294,7 @@ class BagWriter:
         this build's, a topic whose type changed, or a failed write.
         """
         if self._closed:
-            raise BagError(f"{self.path}: recording is closed")
+            raise BagError(self.failed or f"{self.path}: recording is closed")
         try:
             if self._split and self._should_roll(log_time_ns, MESSAGE_HEADER.size + payload_size(frames_after_topic)):
                 self._finish_part()
@@ -240,7 +303,7 @@ class BagWriter:
             self._mcap.add_message(cid, int(log_time_ns), int(publish_time_ns), int(sequence) & 0xFFFFFFFF,
                                    frames_after_topic)
         except OSError as exc:
-            raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
+            raise self._fail(exc) from None
         if self._part_messages == 0:
             self._part_first_ns = log_time_ns
         self._part_messages += 1
@@ -264,7 +327,7 @@ class BagWriter:
         try:
             self._mcap.add_metadata(name, self._metadata[name])
         except OSError as exc:
-            raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
+            raise self._fail(exc) from None
 
     def flush(self) -> None:
         """Finish the chunk in progress and wait until it is written: a crash after this loses nothing before it."""
@@ -272,11 +335,14 @@ class BagWriter:
             try:
                 self._mcap.flush()
             except OSError as exc:
-                raise BagError(f"cannot write {self._paths[-1]}: {exc.strerror or exc}") from None
+                raise self._fail(exc) from None
 
     def close(self, extra_metadata: Mapping[str, Mapping[str, str]] | None = None) -> None:
-        """Write the summary, fsync and close; ``extra_metadata`` goes into the last part only. Idempotent."""
+        """Write the summary, fsync and close; ``extra_metadata`` goes into the last part only. Idempotent, but
+        after a failed write it raises that failure again (the file was already cut back and sealed)."""
         if self._closed:
+            if self.failed:
+                raise BagError(self.failed)
             return
         self._closed = True
         extra = {name: _check_metadata(name, data) for name, data in (extra_metadata or {}).items()}
