@@ -26,6 +26,8 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "hdr": ("probeless.bench.hdr", "HDR expansion of a 0.8M-point cloud end to end (paper 001, Table 1)"),
     "pbgi": ("probeless.bench.pbgi",
              "PBGI: BSH build, Classic / Mipmapped / Hybrid time and memory (paper 001, Table 3)"),
+    "soak": ("probeless.bench.soak", "full pipeline on a looping recording for --minutes N: RSS, open descriptors "
+                                     "and threads per process over time, growth after warm-up"),
 }
 
 __all__ = ["BENCHMARKS"]
