@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from probeless.bag.reader import BagMessage, BagReader
 from probeless.bag.schema import check_schemas
-from probeless.errors import ParamError
+from probeless.errors import BagError, ParamError
 from probeless.launch.replay import parse_remaps
 from probeless.messages.header import Clock, Header
 from probeless.runtime import Node, param
@@ -62,7 +62,10 @@ class BagPlayer(Node):
         self.reader = BagReader(p.path)
         if self.reader.truncated:
             self.ctx.log.warning("%s: %s", p.path, self.reader.truncation_note)
-        recorded = self.reader.topics()
+        if self.reader.start_ns is None:
+            raise BagError(f"{p.path}: no message to play"
+                           + (f" ({self.reader.truncation_note})" if self.reader.truncated else ""))
+        recorded = self._playable(self.reader.topics())
         check_schemas(p.path, {t: (i.type_name, i.version) for t, i in recorded.items()
                                if not p.topics or t in p.topics})
         missing = [t for t in p.topics if t not in recorded]
@@ -77,13 +80,32 @@ class BagPlayer(Node):
         self.timer = self.ctx.create_timer(0.001, self._step, name="play")
         self._restart()
 
+    def _playable(self, recorded: dict) -> dict:
+        """The probeless topics of the recording; other writers' channels (cdr, json, ...) are refused
+        when asked for by name, else skipped with a warning naming them."""
+        p = self.params
+        foreign = {t: i.message_encoding for t, i in recorded.items() if i.foreign}
+        asked = sorted(t for t in p.topics if t in foreign)
+        if asked:
+            raise ParamError(f"{p.path}: cannot play topic(s) {asked}: encoded as "
+                             f"{sorted({foreign[t] for t in asked})}, not as probeless messages",
+                             node_id=self.ctx.node_id, key="topics")
+        if foreign and not p.topics:
+            self.ctx.log.warning("%s: skipping %d topic(s) of other encodings: %s", p.path, len(foreign),
+                                 ", ".join(f"{t} ({e})" for t, e in sorted(foreign.items())))
+        return {t: i for t, i in recorded.items() if t not in foreign}
+
+    def _corrupt(self, what: str) -> None:
+        self.ctx.log.warning("%s", what)
+
     def _restart(self) -> None:
         p = self.params
         start = self.reader.start_ns + int(p.start_s * 1e9)
         end = start + int(p.duration_s * 1e9) if p.duration_s else None
         if getattr(self, "ahead", None) is not None:
             self.ahead.stop()
-        self.ahead = ReadAhead(lambda: self.reader.messages(topics=self.topics, start_ns=start, end_ns=end),
+        self.ahead = ReadAhead(lambda: self.reader.messages(topics=self.topics, start_ns=start, end_ns=end,
+                                                           on_corrupt=self._corrupt),
                                size=READ_AHEAD, name="bag-read-ahead")
         self.ahead.start()
         self.pending: BagMessage | None = None

@@ -7,10 +7,16 @@
   uint8), HdrPointCloud -> ``foxglove.PointCloud`` too, its unbounded radiance tone-mapped for display
   (Reinhard ``x / (1 + x)`` per channel, then sRGB 8-bit through :func:`probeless.color.to_srgb8`),
   TriangleMesh -> ``foxglove.SceneUpdate`` with one TriangleListPrimitive. Other types have no
-  Foxglove equivalent and are skipped (counted per topic). Float colour images are linear, which
+  Foxglove equivalent and are skipped (counted per topic). Channels of other writers whose
+  encoding Foxglove decodes itself (:data:`probeless.bag.foreign.PASSTHROUGH`: json, protobuf,
+  ros1, cdr with ros2msg/ros2idl/omgidl schemas, flatbuffer) are copied with their schemas byte
+  for byte; any other is skipped and named "not decodable: <encoding>" per topic. Float colour images are linear, which
   RawImage cannot show: they become rgb8/rgba8 through the sRGB transfer curve; rgb16 becomes rgb8.
 * ``png-dir``: every image topic as numbered PNGs ``DIR/<topic, "/" -> "__">/000000.png`` plus a
   ``timestamps.csv``; 16-bit images and uint16 depth stay 16-bit, float32 depth becomes uint16 mm.
+  Channels of other encodings are "not decodable" here.
+
+Both skip a chunk that fails its CRC with a warning counting the messages it held.
 """
 
 from __future__ import annotations
@@ -23,7 +29,10 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
+from mcap.records import Channel, Message
 
+from probeless.bag.foreign import Passthrough, not_decodable
+from probeless.bag.format import MESSAGE_ENCODING
 from probeless.bag.reader import BagMessage, BagReader
 from probeless.bag.writer import recording_paths
 from probeless.color import to_srgb8
@@ -206,10 +215,13 @@ def _messages(sources: Sequence[Path], topics: Sequence[str] | None,
     return readers, total
 
 
-def _iter(readers: list[BagReader], topics, tick) -> Iterator[tuple[BagReader, BagMessage]]:
+def _iter(readers: list[BagReader], topics, tick,
+          summary: ExportSummary) -> Iterator[tuple[BagReader, Channel, BagMessage | Message]]:
+    """(reader, channel, message) in log-time order per file: a BagMessage on probeless channels, the
+    raw MCAP message on others; a corrupt chunk is skipped with a warning counting what it held."""
     for r in readers:
-        for m in r.messages(topics=topics):
-            yield r, m
+        for ch, rec in r.records(topics=topics, on_corrupt=summary.warnings.append):
+            yield r, ch, (rec if ch.message_encoding != MESSAGE_ENCODING else r.message_of(ch, rec))
             tick()
 
 
@@ -234,7 +246,11 @@ def export_foxglove(src: str | Path | Sequence[str | Path], out: str | Path, *, 
             for r in readers:
                 for name, data in r.metadata().items():
                     writer.add_metadata(name, data)
-            for r, m in _iter(readers, topics, tick):
+            passthrough = Passthrough(writer)
+            for r, ch, m in _iter(readers, topics, tick, summary):
+                if ch.message_encoding != MESSAGE_ENCODING:
+                    passthrough.add(r, ch, m, summary)
+                    continue
                 convert = FOXGLOVE.get(m.type_name)
                 if convert is None:
                     summary.skipped[m.topic] = summary.skipped.get(m.topic, 0) + 1
@@ -295,7 +311,10 @@ def export_png_dir(src: str | Path | Sequence[str | Path], out_dir: str | Path, 
     csvs: dict[str, Any] = {}
     try:
         with progress_bar(total, f"export {out_dir.name}/", progress) as tick:
-            for r, m in _iter(readers, topics, tick):
+            for r, ch, m in _iter(readers, topics, tick, summary):
+                if ch.message_encoding != MESSAGE_ENCODING:
+                    not_decodable(ch, summary)
+                    continue
                 if m.type_name not in ("sensor/Image", "sensor/DepthImage"):
                     summary.skipped[m.topic] = summary.skipped.get(m.topic, 0) + 1
                     summary.schemas.setdefault(m.topic, f"skipped: {m.type_name} is not an image")

@@ -2,7 +2,9 @@
 
 Besides the MCAP contents it shows what the recorder stored as metadata records:
 ``probeless.incomplete`` (topic -> "N messages missing (seq gaps)") and ``probeless.graph``
-(``plan`` as JSON text, ``version``, ``git_revision``, ``command``).
+(``plan`` as JSON text, ``version``, ``git_revision``, ``command``). Channels of other writers
+(cdr, ros1, json, protobuf, ...) are listed too, with their message encoding and schema name
+(``encoding``, ``schema_encoding`` and ``type`` in the JSON form).
 """
 
 from __future__ import annotations
@@ -12,10 +14,10 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Sequence
 
+from probeless.bag.format import MESSAGE_ENCODING
 from probeless.bag.reader import BagReader
-from probeless.bag.writer import recording_paths
+from probeless.bag.writer import INCOMPLETE, recording_paths
 
-INCOMPLETE = "probeless.incomplete"
 GRAPH = "probeless.graph"
 
 
@@ -32,9 +34,13 @@ def info_report(paths: str | Path | Sequence[str | Path]) -> dict[str, Any]:
             compression |= reader.compression
             for name, data in reader.metadata().items():
                 metadata.setdefault(name, {}).update(data)
-            for t in reader.topics().values():
+            found = reader.topics().values()
+            warnings += reader.problems
+            for t in found:
                 d = topics.setdefault(t.topic, {"type": t.type_name, "version": t.version, "count": 0,
-                                                "bytes": 0, "first_ns": None, "last_ns": None})
+                                                "bytes": 0, "first_ns": None, "last_ns": None,
+                                                "encoding": t.message_encoding,
+                                                "schema_encoding": t.schema_encoding})
                 d["count"] += t.count
                 d["bytes"] += t.bytes
                 if t.count:
@@ -84,6 +90,13 @@ def _time(ns: int | None) -> str:
     return f"{stamp} ({ns} ns)"
 
 
+def _type(d: dict[str, Any]) -> str:
+    """``type vN`` for a probeless topic, ``schema name [encoding]`` for another writer's channel."""
+    if d.get("encoding", MESSAGE_ENCODING) == MESSAGE_ENCODING:
+        return f"{d['type']} v{d['version']}"
+    return f"{d['type'] or '(no schema)'} [{d['encoding'] or 'no encoding'}]"
+
+
 def format_info(report: dict[str, Any]) -> str:
     """The text form of :func:`info_report`."""
     files = ", ".join(f"{f['path']} ({_size(f['size'])})" for f in report["files"])
@@ -94,7 +107,7 @@ def format_info(report: dict[str, Any]) -> str:
              f"compression:  {', '.join(report['compression']) or '-'}",
              f"messages:     {report['message_count']}"]
     lines += [f"WARNING: {w}" for w in report["warnings"]]
-    rows = [(t, f"{d['type']} v{d['version']}", str(d["count"]),
+    rows = [(t, _type(d), str(d["count"]),
              f"{d['rate_hz']:.2f} Hz" if d["rate_hz"] else "-", _size(d["bytes"]))
             for t, d in report["topics"].items()]
     if rows:

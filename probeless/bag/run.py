@@ -59,6 +59,14 @@ def recorded_types(bag: str) -> dict[str, str]:
     if reader.truncated:
         print(f"warning: {bag}: {reader.truncation_note}", file=sys.stderr)
     topics = reader.topics()
+    foreign = {t: i.message_encoding for t, i in topics.items() if i.foreign}
+    if foreign:
+        named = ", ".join(f"{t} ({e})" for t, e in sorted(foreign.items()))
+        if len(foreign) == len(topics):
+            raise BagError(f"{bag}: cannot play topic(s) of other encodings: {named}; bag play and --replay "
+                           "publish probeless (msgpack) messages only (bag export --format foxglove copies them)")
+        print(f"warning: {bag}: not playing topic(s) of other encodings: {named}", file=sys.stderr)
+        topics = {t: i for t, i in topics.items() if t not in foreign}
     check_schemas(bag, {t: (i.type_name, i.version) for t, i in topics.items()})
     return {t: info.type_name for t, info in topics.items()}
 

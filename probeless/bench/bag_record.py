@@ -62,10 +62,11 @@ nodes:
 def _check_recording(path: Path, published: dict[str, int]) -> dict:
     """Counts, payload bytes, first log time and sequence continuity of a camera recording."""
     from probeless.bag.reader import BagReader
+    from probeless.bag.writer import INCOMPLETE
 
     with BagReader(path) as reader:
         topics = reader.topics()
-        incomplete = reader.metadata().get("probeless.incomplete", {})
+        incomplete = reader.metadata().get(INCOMPLETE, {})
         seqs: dict[str, list[int]] = {t: [] for t in topics}
         for m in reader.messages(in_file_order=True):
             seqs[m.topic].append(m.sequence)
