@@ -9,11 +9,11 @@ import sys
 import threading
 from typing import Any
 
-from probeless.bag.writer import RECORDER_QUEUE_BYTES, input_queue_bytes
 from probeless.errors import BagError
 from probeless.launch.plan import new_run_dir
 from probeless.launch.replay import RECORDER_ID
 from probeless.runtime.process import NodeRuntime
+from probeless.runtime.queues import RECORDER_QUEUE_BYTES, input_queue_bytes
 from probeless.topics import graph_topics, select_graph
 
 

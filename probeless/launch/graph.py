@@ -42,7 +42,7 @@ from probeless.runtime.queues import POLICIES
 TOP_KEYS = {"description", "args", "hosts", "include", "nodes", "security"}
 NODE_KEYS = {"id", "node", "inputs", "outputs", "params", "restart", "max_restarts", "restart_backoff_s",
              "host", "description"}
-INPUT_KEYS = {"source", "queue_size", "policy", "feedback"}
+INPUT_KEYS = {"source", "queue_size", "policy", "feedback", "max_bytes"}
 INCLUDE_KEYS = {"file", "namespace", "args"}
 DEFAULT_QUEUE = {"policy": "drop_oldest", "queue_size": 10}
 _TIMER = re.compile(r"^timer/(hz|ms|s)/([0-9]*\.?[0-9]+)$")
@@ -60,6 +60,7 @@ class InputDecl:
     line: int = 0
     timer_period_ns: int | None = None
     feedback: bool = False          # closes a loop: does not keep the node running once its other inputs end
+    max_bytes: int | None = None    # byte bound of the queue [bytes]; None = the runtime's default (256 MiB)
 
 
 @dataclass
@@ -306,8 +307,13 @@ def _parse_inputs(inputs: Any, line: int, ns: str, decl: NodeDecl, err) -> None:
         if not isinstance(feedback, bool):
             err(f"feedback must be true or false, got {feedback!r}", iline, decl.id, key)
             continue
+        max_bytes = spec.get("max_bytes")
+        if max_bytes is not None and (type(max_bytes) is not int or max_bytes < 1):
+            err(f"max_bytes must be an integer >= 1 [bytes], got {max_bytes!r}", iline, decl.id, key)
+            continue
         decl.inputs[str(name)] = _input(str(name), spec["source"], ns, policy, size, iline, decl.id, err)
         decl.inputs[str(name)].feedback = feedback
+        decl.inputs[str(name)].max_bytes = max_bytes
 
 
 def _input(name: str, source: str, ns: str, policy: str, size: int, line: int, node_id: str, err) -> InputDecl:

@@ -44,6 +44,8 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
         inputs = []
         for inp in decl.inputs.values():
             entry = {"name": inp.name, "policy": inp.policy, "queue_size": inp.queue_size, "feedback": inp.feedback}
+            if inp.max_bytes is not None:
+                entry["max_bytes"] = inp.max_bytes
             if inp.timer_period_ns is not None:
                 entry["timer_period_ns"] = inp.timer_period_ns
             else:

@@ -12,6 +12,7 @@ from probeless.errors import BagError, GraphError
 from probeless.launch.graph import Graph, InputDecl, NodeDecl
 from probeless.launch.validate import split_source
 from probeless.runtime.node import input_type
+from probeless.runtime.queues import input_queue_bytes
 from probeless.runtime.registry import resolve_node
 
 PLAYER_ID = "bag_player"
@@ -59,7 +60,8 @@ def add_recorder(graph: Graph, path: str, *, topics: list[str] | None = None, di
     if unknown:
         raise GraphError(f"cannot record {unknown}: not a topic of this graph (topics: {sorted(available)})",
                          file=graph.file)
-    inputs = {t: InputDecl(t, f"{available[t][0]}/{available[t][1]}", "block", 256) for t in chosen}
+    share = input_queue_bytes(len(chosen))  # the recorder's queues together stay under RECORDER_QUEUE_BYTES
+    inputs = {t: InputDecl(t, f"{available[t][0]}/{available[t][1]}", "block", 256, max_bytes=share) for t in chosen}
     graph.nodes[RECORDER_ID] = NodeDecl(RECORDER_ID, "bag_recorder", graph.file, 0, inputs=inputs,
                                         params={"path": path, **(params or {})})
     graph.node_classes[RECORDER_ID] = resolve_node("bag_recorder")

@@ -15,6 +15,15 @@ from typing import Any
 
 POLICIES = ("latest", "drop_oldest", "block")
 QUEUE_MAX_BYTES = 256 << 20  # per input; a single larger message is still taken when the queue is empty
+RECORDER_QUEUE_BYTES = 256 << 20  # a recorder's block input queues together hold at most this [bytes]
+
+
+def input_queue_bytes(n_inputs: int, total: int = RECORDER_QUEUE_BYTES) -> int:
+    """The byte bound of each of a recorder's ``n_inputs`` input queues (plan key ``max_bytes``), so that together
+    they hold at most ``total``. A full queue refuses messages (``policy: block``: the publisher waits); an empty
+    one still takes a single larger message. The writer's own memory is bounded too: 3 chunk buffers of
+    ``chunk_size`` plus one message, and one staging buffer of a chunk."""
+    return max(1 << 20, total // max(1, n_inputs))
 
 
 @dataclass

@@ -17,7 +17,7 @@ from locations import TESTS
 import probeless.bag.attach as attach
 import probeless.bag.directio as directio
 from probeless.bag.reader import BagReader
-from probeless.bag.writer import input_queue_bytes
+from probeless.runtime.queues import input_queue_bytes
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 

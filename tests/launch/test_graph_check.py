@@ -35,6 +35,7 @@ CASES = {
     "bad_duplicate_id": (5, "camera", "id", "duplicate node id"),
     "bad_policy": (8, "sink", "inputs.image", "unknown policy 'newest'"),
     "bad_latest_queue": (8, "sink", "inputs.image", "policy 'latest' keeps one message"),
+    "bad_max_bytes": (8, "sink", "inputs.image", "max_bytes must be an integer >= 1"),
     "bad_timer": (4, "camera", "inputs.tick", "invalid timer 'timer/fps/10'"),
     "bad_yaml_syntax": (5, None, None, "invalid YAML"),
     "bad_missing_arg": (2, None, "args.fps", "required argument not given"),

@@ -69,3 +69,26 @@ def test_rss_of_this_process_matches_psutil():
     import psutil
     ours, theirs = rss_bytes(), psutil.Process().memory_info().rss
     assert abs(ours - theirs) < 0.05 * theirs
+
+
+def test_an_inputs_byte_bound_travels_from_the_graph_to_the_node_queue(tmp_path):
+    from probeless.launch.launcher import load_checked
+    from probeless.launch.plan import build_plan
+    from probeless.runtime.process import NodeRuntime
+
+    g = tmp_path / "g.yaml"
+    g.write_text("""nodes:
+  - id: camera
+    node: pattern_source
+    inputs: {tick: timer/hz/10}
+  - id: sink
+    node: summary_sink
+    inputs:
+      image: {source: camera/image, max_bytes: 5000000}
+""")
+    plan = build_plan(load_checked(str(g), {}), tmp_path)
+    runtime = NodeRuntime(plan, "sink", "inproc://wake-test")
+    try:
+        assert runtime.queues["image"].max_bytes == 5_000_000
+    finally:
+        runtime.zctx.term()
