@@ -113,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("launch", help="run a launch graph, one process per node")
     c.add_argument("graph")
     c.add_argument("args", nargs="*", metavar="name:=value")
-    c.add_argument("--duration", type=float, help="stop the graph cleanly after S seconds")
+    c.add_argument("--duration", type=float, help="stop the graph cleanly S seconds after it started (all nodes ready)")
     c.add_argument("--only", metavar="HOST", help="start only the nodes of this host (name or ADDRESS:PORT)")
     c.add_argument("--ready-timeout", type=float, default=60.0, help="seconds to wait for all nodes to be ready")
     g = c.add_argument_group("record and replay")

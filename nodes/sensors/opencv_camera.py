@@ -6,10 +6,11 @@ Outputs ``image`` (rgb8, or mono8 for a grey stream) and, with a ``calibration``
 Stamps: live sources get the host wall clock ``time.time_ns()`` when ``grab()`` returns (so they
 include the transfer latency; ``time_offset_s`` can subtract a known one). Files get
 ``t_open + CAP_PROP_POS_MSEC`` and, with ``realtime``, are delivered at that pace like a camera;
-at the end of a file the node stops cleanly. A capture thread reads frames so the node's thread
-is never blocked; for live sources it keeps only the newest ``buffer`` frames (drops are counted
-and logged). A device that cannot be opened, fails a read or delivers nothing for ``timeout_s``
-raises DeviceError naming it.
+at the end of a file the node stops cleanly, with a warning when it delivered fewer frames than the
+file's header announces (a truncated or corrupt file: the readable prefix is published). A capture
+thread reads frames so the node's thread is never blocked; for live sources it keeps only the newest
+``buffer`` frames (drops are counted and logged). A device that cannot be opened, fails a read or
+delivers nothing for ``timeout_s`` raises DeviceError naming it.
 """
 
 from __future__ import annotations
@@ -67,6 +68,8 @@ class OpenCvCamera(Node):
                                   f"calibration {p.calibration}: {exc}") from exc
         self.offset_ns = round(p.time_offset_s * 1e9)
         self.reported_drops = 0
+        self.announced = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if self.file else 0  # <= 0: unknown
+        self.published = 0
         frames = capture_frames(cap, p.device, file=self.file)
         self.thread = FrameThread(frames, f"capture-{p.device}", wait=self.file, pace=self.file and p.realtime,
                                   buffer=p.buffer, on_exit=cap.release)
@@ -79,6 +82,9 @@ class OpenCvCamera(Node):
             self.thread.start()
         if drain(self.thread, self.publish):
             self.timer.cancel()
+            if self.published < self.announced:
+                self.ctx.log.warning("camera %r: the file ended after %d of the %d frame(s) its header announces "
+                                     "(truncated or corrupt?)", self.params.device, self.published, self.announced)
             self.ctx.stop()
             return
         if self.thread.dropped > self.reported_drops:
@@ -95,6 +101,7 @@ class OpenCvCamera(Node):
         if self.info is not None:
             self.ctx.publish("camera_info", dataclasses.replace(self.info, header=header))
         self.ctx.publish("image", Image(header, data, encoding))
+        self.published += 1
 
     def close(self) -> None:
         if getattr(self, "thread", None) is not None:

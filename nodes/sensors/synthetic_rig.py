@@ -1,7 +1,9 @@
 """Synthetic rig node: renders a scene file's RGB-D and fisheye cameras and ground truth (see probeless.scene.rig).
 
-Once at the start it publishes ``floorplan`` and ``fisheye_from_rgbd`` (both as the scene's ``given`` block
-tells the pipeline); ``seed`` seeds the base depth noise, the scene's ``sensor_effects.seed`` its effects."""
+At the start it publishes ``floorplan`` and ``fisheye_from_rgbd`` (both as the scene's ``given`` block
+tells the pipeline), and live (``rate`` > 0) again every ``static_period_s`` of wall time, so a node restarted
+after a crash gets them too (their consumers ignore an unchanged repeat). ``seed`` seeds the base depth
+noise, the scene's ``sensor_effects.seed`` its effects."""
 
 from __future__ import annotations
 
@@ -50,6 +52,8 @@ class SyntheticRig(Node):
         stamps: str = param("scene", choices=("scene", "wall"),
                             doc="scene = scene time from 0 (reproducible); wall = the node clock when the frame is "
                                 "rendered, like a live camera's host stamps")
+        static_period_s: float = param(1.0, min=0.0, doc="live: republish floorplan and fisheye_from_rgbd this "
+                                                         "often [s, wall], for restarted nodes; 0 = once")
         max_lag_s: float = param(0.05, min=0.0, doc="lag beyond which the schedule shifts [s]")
 
     def setup(self) -> None:
@@ -62,16 +66,13 @@ class SyntheticRig(Node):
         self.lockstep = p.rate == 0
         self.passes, self.next = 0, 0
         self.pacer = None if self.lockstep else Pacer(p.rate)
-        self.floorplan_sent = False
+        self.static_due: float | None = 0.0  # monotonic time [s] the static messages are due; None = never again
         self.timer = self.ctx.create_timer(0.002, self._step, name="render")
 
     def _step(self) -> None:
         # from the first timer tick: after the readiness barrier, so no subscriber misses it
-        if not self.floorplan_sent:
-            origin_ns = self.ctx.now_ns() if self.params.stamps == "wall" else 0
-            self.ctx.publish("floorplan", shift_stamp(self.rig.floorplan(), origin_ns))
-            self.ctx.publish("fisheye_from_rgbd", shift_stamp(self.rig.fisheye_from_rgbd_message(), origin_ns))
-            self.floorplan_sent = True
+        if self.static_due is not None and time.monotonic() >= self.static_due:
+            self._publish_static()
         if self.next >= len(self.events):
             self._at_end()
             return
@@ -93,6 +94,15 @@ class SyntheticRig(Node):
             self.ctx.wait_quiescent()
         elif (lag := time.monotonic() - self.pacer.due(offset_s + event.t)) > self.params.max_lag_s:
             self.pacer.shift(lag)  # fell behind: both cameras slow down together
+
+    def _publish_static(self) -> None:
+        """floorplan and fisheye_from_rgbd, stamped at the first publication; schedules the next repeat."""
+        if self.static_due == 0.0:
+            self.static_origin_ns = self.ctx.now_ns() if self.params.stamps == "wall" else 0
+        self.ctx.publish("floorplan", shift_stamp(self.rig.floorplan(), self.static_origin_ns))
+        self.ctx.publish("fisheye_from_rgbd", shift_stamp(self.rig.fisheye_from_rgbd_message(), self.static_origin_ns))
+        period = self.params.static_period_s
+        self.static_due = None if self.lockstep or period <= 0 else time.monotonic() + period
 
     def _at_end(self) -> None:
         if not self.params.loop:

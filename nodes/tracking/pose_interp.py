@@ -113,6 +113,7 @@ class PoseInterp(Node):
         p = self.params
         self.fixed = param_extrinsics(p)
         self.rgbd_from_fisheye = None if self.fixed is None else invert_transform(self.fixed)
+        self.input_extrinsics: np.ndarray | None = None  # the last fisheye_from_rgbd input taken
         self.poses = PoseBuffer(p.buffer_length, _ns(p.jump_back_s), _ns(p.max_gap_s))
         self.max_extrap_ns, self.max_hold_ns, self.jump_ns = (_ns(p.max_extrapolation_s), _ns(p.max_hold_s),
                                                               _ns(p.jump_back_s))
@@ -144,6 +145,9 @@ class PoseInterp(Node):
                                  node_id=self.ctx.node_id, key=key)
             self.counts["extrinsics_input_agrees"] += 1
             return
+        if self.input_extrinsics is not None and np.array_equal(T, self.input_extrinsics):
+            return  # a repeat (sources republish it for restarted nodes)
+        self.input_extrinsics = T
         self.rgbd_from_fisheye = invert_transform(T)
         self.counts["extrinsics_updates"] += 1
         self.ctx.log.info("fisheye_from_rgbd from the input (stamp %d): translation %s", msg.header.stamp_ns,

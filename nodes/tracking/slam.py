@@ -24,6 +24,12 @@ frame stamps bridges the gaps (:meth:`DenseSlam.predicted`). The defaults (half 
 mapping every 2nd tracked frame) and the measured rates behind them: docs/tracking/README.md.
 Model extraction runs every ``model_period_s`` on the same thread.
 
+Restarted (``restart: on-failure`` after a crash): the map died with the process. The node says so
+(a warning at setup, and the reason ``restarted without a map: ...`` on ``tracking`` with the first
+frame of the new model) and re-initialises like a first start: from the next ``initial_pose`` (with
+``wait_for_initial_pose``; a ground-truth or relocalisation stream keeps the world frame), else from the
+``initial_pose`` param, in which case the new map's world frame is the param's, not the lost map's.
+
 A failed frame (solver failure, low fitness, NaN pose, implausible jump, empty or NaN depth) is
 reported on ``tracking`` and logged (the first of a run of failures, then every 30th); the model
 is not touched and the next frame is tracked from the last good pose (moved on by the motion
@@ -39,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from probeless.color import quantize8
+from probeless.launch.launcher import restart_count
 from probeless.messages.diagnostics import TrackingState
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
@@ -136,6 +143,7 @@ class DenseSlamNode(Node):
         self.counts = dict(tracked=0, lost=0, invalid=0, skipped=0, dropped=0, consecutive=0, last_good=0)
         self.last_rgb_seq: int | None = None
         self.model_dirty, self.frame_id = False, "rgbd"
+        self.restart_note = self._restart_note(restart_count())
         names = ["rgb", "depth"]
         if p.slop_s > 0:
             self.sync = ApproximateTimeSync(names, self._on_pair, round(p.slop_s * 1e9), on_unmatched=self._unmatched)
@@ -146,6 +154,17 @@ class DenseSlamNode(Node):
             self.ctx.create_timer(p.trajectory_flush_s, self.traj.flush, name="trajectory_flush")
         if p.model_output != "none":
             self.ctx.create_timer(p.model_period_s, self._publish_model, name="model")
+
+    def _restart_note(self, restarts: int) -> str:
+        """Warn that a restarted process lost the map; the note goes with the first frame of the new model."""
+        if not restarts:
+            return ""
+        source = ("the next initial_pose" if self.params.wait_for_initial_pose
+                  else "the initial_pose param (the lost map's world frame is not kept)")
+        note = f"restarted without a map (restart {restarts}): re-initialised from {source}"
+        held = "; frames are held until then" if self.params.wait_for_initial_pose else ""
+        self.ctx.log.warning("%s%s", note.replace("re-initialised", "re-initialising"), held)
+        return note
 
     def on_input(self, name: str, msg) -> None:
         if name == "camera_info":
@@ -248,7 +267,8 @@ class DenseSlamNode(Node):
             if c["consecutive"] % LOG_EVERY == 1:  # the first failure, then every LOG_EVERY-th
                 self.ctx.log.warning("frame %d: %s (%s); %d failed in a row", stamp, r.state, r.reason,
                                      c["consecutive"])
-        self._publish_state(rgb.header, r.state, r.reason, r.fitness, step_ms)
+        reason, self.restart_note = "; ".join(filter(None, (self.restart_note, r.reason))), ""
+        self._publish_state(rgb.header, r.state, reason, r.fitness, step_ms)
 
     def _publish_state(self, header: Header, state: str, reason: str, fitness: float, step_ms: float) -> None:
         c = self.counts

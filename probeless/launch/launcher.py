@@ -1,4 +1,12 @@
-"""``probeless launch``: one process per node, log prefixing, readiness barrier, restarts, shutdown."""
+"""``probeless launch``: one process per node, log prefixing, readiness barrier, restarts, shutdown.
+
+Restarts: a node with ``restart: on-failure`` that exits non-zero (or is killed) is started again after
+``restart_backoff_s`` (doubling each time), at most ``max_restarts`` times; the new process gets
+``PROBELESS_RESTARTS=<n>`` in its environment (:func:`restart_count`), so a node that loses state
+with its process (SLAM's map) can say so. Shutdown is bounded: SIGTERM to every node, then, after
+``kill_timeout`` seconds, SIGKILL to the process group of every node still alive (the node and
+anything it started), each logged with the node id; such a node counts as failed.
+"""
 
 from __future__ import annotations
 
@@ -28,6 +36,15 @@ _PR_SET_PDEATHSIG = 1
 # camera frame costs hundreds of page faults. Node processes keep such buffers on the heap instead
 # (measured: recorder page faults 600-850/MB -> ~130/MB, throughput about doubled). Users may override.
 NODE_MALLOC_ENV = {"MALLOC_MMAP_THRESHOLD_": str(64 << 20), "MALLOC_TRIM_THRESHOLD_": str(256 << 20)}
+RESTARTS_ENV = "PROBELESS_RESTARTS"
+
+
+def restart_count() -> int:
+    """How often the launcher has restarted this node process (0 at the first start, or outside a launch)."""
+    try:
+        return max(0, int(os.environ.get(RESTARTS_ENV, "0")))
+    except ValueError:
+        return 0
 
 
 def load_checked(path: str, overrides: dict[str, Any]):
@@ -55,6 +72,15 @@ class Child:
     ready: bool = False
     restart_at: float | None = None
     threads: list = field(default_factory=list)
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    """SIGKILL a node's process group (it leads its own session), then reap it."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        proc.kill()
+    proc.wait()
 
 
 class Launcher:
@@ -115,7 +141,7 @@ class Launcher:
     def _spawn(self, child: Child) -> None:
         cmd = [sys.executable, "-u", "-m", "probeless.runtime.process", str(self.run_dir), child.node_id]
         tuned = os.environ.get("PROBELESS_MALLOC_TUNING", "1") != "0"
-        env = {**(NODE_MALLOC_ENV if tuned else {}), **os.environ}
+        env = {**(NODE_MALLOC_ENV if tuned else {}), **os.environ, RESTARTS_ENV: str(child.restarts)}
         child.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
                                       start_new_session=True, preexec_fn=_die_with_parent, env=env)
         child.ready = False
@@ -145,7 +171,7 @@ class Launcher:
                 elif child is not None:
                     self._on_lockstep(ctl, child.node_id, parts[1:])
             if not started and all(c.ready for c in self.children.values()):
-                started = True
+                started, t_started = True, time.monotonic()  # --duration counts from here, not from the spawn
                 self.log(f"{len(self.children)} node(s) ready in {time.monotonic() - t0:.2f} s, starting")
                 for c in self.children.values():
                     ctl.send_multipart([c.node_id.encode(), b"start"])
@@ -157,7 +183,8 @@ class Launcher:
             if self.quiescence is not None and any(
                     self.children[n].proc.poll() is not None for n in self.quiescence.expected):
                 self._collect(ctl)  # a node ended mid-collect: collect again without it
-            if self._reap() or (self.duration is not None and started and time.monotonic() - t0 > self.duration):
+            if self._reap() or (self.duration is not None and started
+                                and time.monotonic() - t_started > self.duration):
                 return
 
     def _on_lockstep(self, ctl: zmq.Socket, node_id: str, parts: list[bytes]) -> None:
@@ -220,9 +247,9 @@ class Launcher:
             try:
                 c.proc.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
-                self.log(f"node {c.node_id} did not stop within {self.kill_timeout:.0f} s; killing it")
-                c.proc.kill()
-                c.proc.wait()
+                self.log(f"node {c.node_id} did not stop within {self.kill_timeout:g} s of SIGTERM; "
+                         f"sending SIGKILL (pid {c.proc.pid})")
+                _kill_group(c.proc)
                 self.failed.append(c.node_id)
         for c in alive:
             # -SIGTERM: the node was still starting (no handler yet) when we stopped it; that is clean

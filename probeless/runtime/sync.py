@@ -16,7 +16,15 @@ publisher per topic). Emitted sets are in non-decreasing stamp order per input, 
 older than its input's last emitted stamp can never be matched: it is reported unmatched with
 reason ``"out_of_order"``. Every message ends up emitted once, reported unmatched once (through
 ``on_unmatched(name, msg, reason)`` and the counters), or still queued (:attr:`queued`).
-Reasons: ``overflow``, ``no_match``, ``superseded``, ``out_of_order``, ``duplicate``, ``flushed``.
+Reasons: ``overflow``, ``no_match``, ``superseded``, ``out_of_order``, ``duplicate``, ``flushed``,
+``time_jump``.
+
+Clock jumps: a message older than its input's newest stamp by more than ``jump_back_ns`` (default
+1 s) is a time jump (a host clock set back, a replay loop, a restarted source): every queued message
+newer than it by more than ``jump_back_ns`` is reported unmatched (``time_jump``), the ordering state
+of every input is forgotten, and matching starts afresh from it (counted in :attr:`time_jumps`).
+Smaller disorder stays ``out_of_order``. A jump forwards needs nothing: older partners are dropped
+as ``no_match`` until every input has jumped too, so nothing is ever emitted out of order.
 """
 
 from __future__ import annotations
@@ -30,17 +38,23 @@ from probeless.messages.base import Message
 
 Callback = Callable[[dict[str, Message]], None]
 Unmatched = Callable[[str, Message, str], None]
+JUMP_BACK_NS = 1_000_000_000  # a stamp this much older than its input's newest is a time jump [ns]
 
 
 class _Sync:
     """Shared bookkeeping: names, bounded queues, counters and the unmatched hook."""
 
     def __init__(self, names: Sequence[str], callback: Callback, queue_size: int,
-                 on_unmatched: Unmatched | None):
+                 on_unmatched: Unmatched | None, jump_back_ns: int = JUMP_BACK_NS):
         if not names or len(set(names)) != len(names):
             raise ValueError(f"need one or more distinct input names, got {list(names)!r}")
         if queue_size < 1:
             raise ValueError(f"queue_size must be >= 1, got {queue_size}")
+        if jump_back_ns < 0:
+            raise ValueError(f"jump_back_ns must be >= 0, got {jump_back_ns}")
+        self.jump_back_ns = jump_back_ns
+        self.time_jumps = 0                                 # backward time jumps seen [count]
+        self._newest: dict[str, int | None] = dict.fromkeys(names)
         self.names = tuple(names)
         self.callback, self.queue_size, self.on_unmatched = callback, queue_size, on_unmatched
         self.matched = 0                                    # sets emitted [count]
@@ -71,6 +85,12 @@ class _Sync:
         self.callback(msgs)
 
     def _stale(self, name: str, msg: Message) -> bool:
+        """Report ``msg`` unmatched when it can never be emitted in order; handle a time jump first."""
+        stamp, newest = msg.header.stamp_ns, self._newest[name]
+        if newest is not None and newest - stamp > self.jump_back_ns:
+            self._time_jump(stamp)
+            newest = None
+        self._newest[name] = stamp if newest is None else max(newest, stamp)
         last = self._last_emitted[name]
         if last is not None and msg.header.stamp_ns < last:
             self._drop(name, msg, "out_of_order")
@@ -78,14 +98,35 @@ class _Sync:
         return False
 
 
+    def _time_jump(self, stamp: int) -> None:
+        """Forget the ordering before a backward jump to ``stamp``; drop what was queued from before it."""
+        self.time_jumps += 1
+        self._discard_queued(lambda s: s - stamp > self.jump_back_ns, "time_jump")
+        self._reset_order()
+
+    def _reset_order(self) -> None:
+        self._last_emitted = dict.fromkeys(self.names)
+        self._newest = dict.fromkeys(self.names)
+
+    def _discard_queued(self, dead: Callable[[int], bool], reason: str) -> None:
+        raise NotImplementedError
+
+
 class ExactTimeSync(_Sync):
     """Emits ``{name: msg}`` once every input has a message with the same ``header.stamp_ns``."""
 
     def __init__(self, names: Sequence[str], callback: Callback, queue_size: int = 10,
-                 on_unmatched: Unmatched | None = None):
-        super().__init__(names, callback, queue_size, on_unmatched)
+                 on_unmatched: Unmatched | None = None, jump_back_ns: int = JUMP_BACK_NS):
+        super().__init__(names, callback, queue_size, on_unmatched, jump_back_ns)
         self._queues: dict[str, dict[int, Message]] = {n: {} for n in self.names}
         self._last_seen: dict[str, int | None] = dict.fromkeys(self.names)
+
+    def _reset_order(self) -> None:
+        super()._reset_order()
+        self._last_seen = {n: max(q) if q else None for n, q in self._queues.items()}
+
+    def _discard_queued(self, dead: Callable[[int], bool], reason: str) -> None:
+        self._discard(lambda n, s: dead(s), reason)
 
     def add(self, name: str, msg: Message) -> None:
         """Queue a message of input ``name``; may call the callback and ``on_unmatched``."""
@@ -136,13 +177,20 @@ class ApproximateTimeSync(_Sync):
     """
 
     def __init__(self, names: Sequence[str], callback: Callback, slop_ns: int, queue_size: int = 10,
-                 on_unmatched: Unmatched | None = None, wait_for_nearest: bool = True):
-        super().__init__(names, callback, queue_size, on_unmatched)
+                 on_unmatched: Unmatched | None = None, wait_for_nearest: bool = True,
+                 jump_back_ns: int = JUMP_BACK_NS):
+        super().__init__(names, callback, queue_size, on_unmatched, jump_back_ns)
         if slop_ns < 0:
             raise ValueError(f"slop_ns must be >= 0, got {slop_ns}")
         self.slop_ns, self.wait_for_nearest = slop_ns, wait_for_nearest
         self._queues: dict[str, list[tuple[int, int, Message]]] = {n: [] for n in self.names}
         self._seq = itertools.count()
+
+    def _discard_queued(self, dead: Callable[[int], bool], reason: str) -> None:
+        for name, queue in self._queues.items():
+            for entry in [e for e in queue if dead(e[0])]:
+                queue.remove(entry)
+                self._drop(name, entry[2], reason)
 
     def add(self, name: str, msg: Message) -> None:
         """Queue a message of input ``name``; may call the callback and ``on_unmatched``."""

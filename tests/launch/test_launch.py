@@ -263,16 +263,22 @@ nodes:
 @pytest.mark.graph
 @pytest.mark.slow
 def test_duration_stops_graph(tmp_path):
-    g = write_graph(tmp_path, """
+    g = write_graph(tmp_path, f"""
 nodes:
   - id: src
     node: nodes_for_tests:Ticker
-    inputs: {tick: timer/hz/20}
+    inputs: {{tick: timer/hz/20}}
+  - id: sink
+    node: nodes_for_tests:Recorder
+    inputs: {{image: {{source: src/image, policy: block}}}}
+    params: {{out: {tmp_path}/sink.json}}
 """)
     t0 = time.monotonic()
     code, log = launch(g, duration=1.0)
     assert code == 0, log
     assert 1.0 <= time.monotonic() - t0 < 15
+    # the second counts from the start (every node ready), not from the spawn: ~20 frames however slow the start
+    assert 12 <= len(json.loads((tmp_path / "sink.json").read_text())["seqs"]["image"]) <= 30
 
 
 def _free_port() -> int:
