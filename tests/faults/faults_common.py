@@ -29,10 +29,15 @@ def launch_graph(path: Path, *args: str, timeout_s: float = 120.0) -> tuple[int,
     proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(path), *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=node_env(),
                             start_new_session=True)
+    return proc.returncode, finish(proc, timeout_s, f"probeless launch {path}")
+
+
+def finish(proc: subprocess.Popen, timeout_s: float = 90.0, what: str = "launch") -> str:
+    """The output of ``proc`` once it ends; kills its process group and fails the test after ``timeout_s``."""
     try:
         out, _ = proc.communicate(timeout=timeout_s)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         out, _ = proc.communicate()
-        raise AssertionError(f"probeless launch {path} hung for more than {timeout_s} s:\n{out}") from None
-    return proc.returncode, out
+        raise AssertionError(f"{what} hung for more than {timeout_s} s:\n{out}") from None
+    return out

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import zmq
 import zmq.auth
-from faults_common import ROOT, node_env
+from faults_common import ROOT, finish, node_env
 
 from probeless import wire
 from probeless.cli import main
@@ -56,16 +56,6 @@ def start(path: Path, *args: str, env: dict | None = None) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(path), *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env or node_env(),
                             start_new_session=True)
-
-
-def finish(proc: subprocess.Popen, timeout_s: float = 90.0) -> str:
-    try:
-        out, _ = proc.communicate(timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        out, _ = proc.communicate()
-        raise AssertionError(f"launch hung for more than {timeout_s} s:\n{out}") from None
-    return out
 
 
 class Running:
