@@ -36,6 +36,7 @@ VICTIMS = {"slam": "slam/pose", "undistort": "undistort/image", "interp": "inter
            "brightness": "brightness/delta", "texturer": "texturer/atlas", "envmap": "envmap/envmaps",
            "compositor": "compositor/image", "video": "video/diagnostics", "png": "png/diagnostics"}
 RESUME_BOUND_S = 60.0  # restart backoff (0.2 s) + process start + setup + the first output, on a loaded 2-core VM
+DIAGNOSTICS_S = 1.5   # a little more than the 1 Hz diagnostics period
 SETTLE_S = 2.0         # after the last restarted node works again, before the graph is stopped
 
 
@@ -196,6 +197,7 @@ class Killer(threading.Thread):
             self.ready_after[victim] = (time.time_ns() - t_kill) / 1e9
             if not self._wait(lambda: w.working(victim, topic, t_kill), f"{victim} to resume {topic}"):
                 return
+            time.sleep(DIAGNOSTICS_S)  # downstream nodes report the restart before one of them is killed next
         time.sleep(SETTLE_S)
 
 
