@@ -134,11 +134,17 @@ def host_endpoint(graph: Graph, decl: NodeDecl) -> str | None:
         return None
     literal = _literal_host(decl.host)
     if literal:
-        return f"tcp://{literal[0]}:{literal[1]}"
+        return f"tcp://{_bracket(literal[0])}:{literal[1]}"
     host = graph.hosts[decl.host]
     same = [d.id for d in graph.nodes.values() if d.host == decl.host]
     # two ports per node: PORT (lossless, for 'block' inputs) and PORT+1 (lossy: latest, drop_oldest, tools)
-    return f"tcp://{host.get('address', '127.0.0.1')}:{int(host.get('port_base', 7400)) + 2 * same.index(decl.id)}"
+    port = int(host.get('port_base', 7400)) + 2 * same.index(decl.id)
+    return f"tcp://{_bracket(str(host.get('address', '127.0.0.1')))}:{port}"
+
+
+def _bracket(address: str) -> str:
+    """An IPv6 address in the brackets a ZeroMQ endpoint needs (``::`` -> ``[::]``); others unchanged."""
+    return f"[{address}]" if ":" in address and not address.startswith("[") else address
 
 
 def _check_cycles(graph: Graph) -> list[GraphError]:

@@ -106,6 +106,8 @@ class Receiver(threading.Thread):
             s.setsockopt(zmq.RCVHWM, BLOCK_RECV_HWM if queues[w.name].policy == "block" else DROP_RECV_HWM)
             s.setsockopt(zmq.LINGER, 0)
             s.setsockopt(zmq.MAXMSGSIZE, max_bytes)  # refuse oversized frames before allocating them
+            if "[" in w.endpoint:
+                s.setsockopt(zmq.IPV6, 1)  # tcp://[::1]:PORT
             if curve is not None:
                 curve.client(s, w.endpoint)  # CURVE client on tcp (security.py)
             s.connect(w.endpoint)

@@ -61,6 +61,8 @@ class _Socket:
         self.sock.setsockopt(zmq.SNDHWM, SEND_HWM)
         self.sock.setsockopt(zmq.SNDTIMEO, 100)
         self.sock.setsockopt(zmq.LINGER, 2000)
+        if "[" in endpoint:
+            self.sock.setsockopt(zmq.IPV6, 1)  # tcp://[::1]:PORT
         if curve is not None:
             curve.server(zctx, self.sock, endpoint)  # CURVE server on tcp (security.py)
         try:
