@@ -87,8 +87,14 @@ def build_graph(recording: Path, rate: float, out_dir: str, diag_bag: str):
     return graph
 
 
-def node_activity(diag_bag: str, t0_wall: float) -> dict[str, list[tuple[float, int]]]:
-    """node -> [(t [s since sampling began], published + received count)] from the recorded diagnostics."""
+def producers(plan: dict) -> set[str]:
+    """Nodes of a run plan whose data outputs (not diagnostics) have subscribers."""
+    return {nid for nid, spec in plan["nodes"].items()
+            if any(o.get("subscribers") and not o["topic"].endswith("/diagnostics") for o in spec["outputs"].values())}
+
+
+def node_activity(diag_bag: str, t0_wall: float, producing: set[str]) -> dict[str, list[tuple[float, int]]]:
+    """node -> [(t [s since sampling began], work count: see :func:`activity`)] from the recorded diagnostics."""
     from probeless.bag.reader import BagReader
     from probeless.bench.soak_stats import activity
 
@@ -96,7 +102,7 @@ def node_activity(diag_bag: str, t0_wall: float) -> dict[str, list[tuple[float, 
     with BagReader(diag_bag) as reader:
         for m in reader.messages():
             st = reader.decode(m)
-            count = activity(st.published, [i.received for i in st.inputs])
+            count = activity(st.published, [i.received for i in st.inputs], st.node_id in producing)
             out.setdefault(st.node_id, []).append((m.publish_time_ns / 1e9 - t0_wall, count))
     return out
 
@@ -121,7 +127,8 @@ def run_soak(minutes: float, recording: Path | None = None, rate: float = RATE, 
             code = launcher.run()
             wall = time.monotonic() - sampler.t0
             sampler.stop()
-        activity_t = node_activity(diag_bag, sampler.t0_wall) if Path(diag_bag).is_file() else {}
+        activity_t = (node_activity(diag_bag, sampler.t0_wall, producers(launcher.plan))
+                      if Path(diag_bag).is_file() else {})
     return analyse(sampler.series, sampler.sample_t, activity_t, duration, period_s,
                    {"graph": str(GRAPH.relative_to(REPO_ROOT)), "recording": str(recording), "loop": True,
                     "rate": rate, "wall_s": wall, "exit_code": code, "nodes": sorted(launcher.children),

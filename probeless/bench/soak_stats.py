@@ -110,9 +110,13 @@ def exits_and_restarts(per_process: dict[str, dict[str, list]], end_t: float, pe
     return {"exited_at_s": exited, "pid_changes": {n: c for n, c in restarts.items() if c}}
 
 
-def activity(published: tuple[str, ...], received: list[int]) -> int:
-    """A node's message count: everything it published (``"<output>=<count>"`` items) plus everything it received."""
-    return sum(int(p.rpartition("=")[2]) for p in published) + sum(received)
+def activity(published: tuple[str, ...], received: list[int], producer: bool) -> int:
+    """A node's work count: the data it published (``"<topic>=<count>"`` items, diagnostics left out) when it is a
+    ``producer`` (its data outputs have subscribers), else what it received (a sink). A stage that keeps receiving
+    but stops producing (a synchroniser stuck after the loop's time jump) is then stalled, not flowing."""
+    if producer:
+        return sum(int(c) for t, _, c in (p.rpartition("=") for p in published) if not t.endswith("/diagnostics"))
+    return sum(received)
 
 
 def health(activity_t: dict[str, list[tuple[float, int]]], cut_s: float) -> dict:

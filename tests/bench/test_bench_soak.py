@@ -172,3 +172,15 @@ def test_soak_two_minutes_of_the_full_pipeline_meets_the_goal():
     # RSS is judged by the long run only (docs): several nodes here still step up for ~2 min after starting.
     checks = r["goal"]["checks"]
     assert checks["fds"] and checks["threads"] and checks["rss_total"], why
+
+
+def test_a_stage_that_receives_but_no_longer_produces_is_stalled():
+    from probeless.bench.soak_stats import activity
+
+    # interp kept receiving after the loop's time jump but published nothing more: its work count is flat
+    early = activity(("interp/fisheye_pose=40", "interp/diagnostics=10"), [100, 50], producer=True)
+    late = activity(("interp/fisheye_pose=40", "interp/diagnostics=70"), [900, 450], producer=True)
+    assert early == late == 40
+    flow = health({"interp": [(10, early), (50, early), (90, late)]}, 50.0)
+    assert flow["stalled"] == ["interp"]
+    assert activity(("png/diagnostics=9",), [3, 4], producer=False) == 7   # a sink counts what it receives
