@@ -89,8 +89,21 @@ def _run_stall(tmp: Path, stopped_policy: str, tcp: bool = False) -> dict:
     status = json.loads((tmp / "watch.json").read_text())["status"]["stopped"]["image"]
     baseline = _rate(running, running[0] + int(0.5e9), t_stop)
     during = _rate(running, t_stop + int(0.2e9), t_cont)
+    _report(f"{stopped_policy}_{'tcp' if tcp else 'ipc'}", {
+        "running_sink_hz_before": round(baseline, 2), "running_sink_hz_while_stopped": round(during, 2),
+        "ratio": round(during / baseline, 3), "frames": FRAMES, "stopped_sink_received": len(stopped),
+        "stopped_sink_seq_gaps": status["seq_gaps"], "stopped_sink_dropped": status["dropped"]})
     return {"baseline_hz": baseline, "during_hz": during, "stopped_seqs": [s for s, _ in stopped],
             "status": status, "log": out}
+
+
+def _report(case: str, figures: dict) -> None:
+    """With PROBELESS_FAULTS_REPORT=FILE, add this case's figures to that JSON file (the docs' table)."""
+    path = os.environ.get("PROBELESS_FAULTS_REPORT")
+    if path:
+        report = json.loads(Path(path).read_text()) if Path(path).is_file() else {}
+        report[case] = figures
+        Path(path).write_text(json.dumps(report, indent=1))
 
 
 @pytest.mark.graph
