@@ -29,7 +29,8 @@ def launch_graph(path: Path, *args: str, timeout_s: float = 120.0) -> tuple[int,
     proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(path), *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=node_env(),
                             start_new_session=True)
-    return proc.returncode, finish(proc, timeout_s, f"probeless launch {path}")
+    out = finish(proc, timeout_s, f"probeless launch {path}")
+    return proc.returncode, out
 
 
 def finish(proc: subprocess.Popen, timeout_s: float = 90.0, what: str = "launch") -> str:
