@@ -5,8 +5,8 @@ for N minutes, with a recorder on every node's diagnostics. Meanwhile every ``--
 samples the launcher and every node process (:mod:`probeless.bench.soak_sample`): RSS, open file
 descriptors, threads. It reports their series, their growth after warm-up and whether the goal holds
 (:mod:`probeless.bench.soak_stats`: RSS growth < 5 %, no descriptor or thread growth, per process and
-in total), whether messages kept flowing (each node's published + received counts from its
-diagnostics grew after warm-up), and any node that exited or restarted.
+in total), whether messages kept flowing (each producing node's published data and each
+sink's received count, from their diagnostics, grew after warm-up), and any node that exited or restarted.
 
 The recording defaults to 2 s of ``launch/scenes/l_shaped_lounge.yaml``, rendered once (``scene render
 --no-envmaps``, about 30 s) and cached as ``out/soak/lounge_2s.mcap``. ``--json`` prints one JSON
