@@ -82,12 +82,12 @@ def test_check_warns_about_plain_tcp_once_per_host(tmp_path, capsys):
     assert "2 warning(s)" in captured.out
 
 
-@pytest.mark.parametrize("address", ["0.0.0.0", "*", "::"])
-def test_check_refuses_every_interface_without_curve(tmp_path, capsys, address):
+@pytest.mark.parametrize(("address", "endpoint"), [("0.0.0.0", "0.0.0.0"), ("*", "*"), ("::", "[::]")])
+def test_check_refuses_every_interface_without_curve(tmp_path, capsys, address, endpoint):
     path = graph_file(tmp_path, cam_address=address)
     assert main(["check", str(path)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"error: {path}:10: node 'camera': key 'host': binds tcp://{address}:7400 on every "
+    assert err.startswith(f"error: {path}:10: node 'camera': key 'host': binds tcp://{endpoint}:7400 on every "
                           f"network interface without CURVE")
     assert "1 error(s)" in err
 
