@@ -47,6 +47,16 @@ class Layout:
     time_range: tuple[int, int] | None = None
     truncation_note: str = ""                     # empty: the file is complete
 
+    def register(self, record: Any) -> bool:
+        """Keep ``record`` when it is a schema or a channel; False for any other record."""
+        if isinstance(record, Schema):
+            self.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            self.channels[record.id] = record
+        else:
+            return False
+        return True
+
 
 def read_at(f: BinaryIO, size: int, offset: int) -> tuple[int, memoryview] | None:
     """(opcode, body) of the record at ``offset``, None when it does not fit in the file."""
@@ -92,11 +102,9 @@ def _from_summary(f: BinaryIO, size: int, summary_start: int, records: list[Any]
     indexes: list[ChunkIndex] = []
     stats: Statistics | None = None
     for r in records:
-        if isinstance(r, Schema):
-            out.schemas[r.id] = r
-        elif isinstance(r, Channel):
-            out.channels[r.id] = r
-        elif isinstance(r, ChunkIndex):
+        if out.register(r):
+            continue
+        if isinstance(r, ChunkIndex):
             indexes.append(r)
         elif isinstance(r, Statistics):
             stats = r

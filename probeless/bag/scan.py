@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Any, BinaryIO
 
 from mcap.opcode import Opcode
-from mcap.records import Channel, Message, Schema
+from mcap.records import Message
 
 from probeless.bag.layout import Block, Layout
 from probeless.bag.records import (
@@ -33,11 +33,9 @@ def take(out: Layout, records: list[Any], stats: dict[int, list]) -> set[int]:
     """Register schemas and channels, count messages into ``stats``; the channel ids of the messages."""
     ids = set()
     for r in records:
-        if isinstance(r, Schema):
-            out.schemas[r.id] = r
-        elif isinstance(r, Channel):
-            out.channels[r.id] = r
-        elif isinstance(r, Message):
+        if out.register(r):
+            continue
+        if isinstance(r, Message):
             ids.add(r.channel_id)
             s = stats.setdefault(r.channel_id, [0, r.log_time, r.log_time, 0])
             s[0] += 1

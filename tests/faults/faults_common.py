@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -42,3 +43,23 @@ def finish(proc: subprocess.Popen, timeout_s: float = 90.0, what: str = "launch"
         out, _ = proc.communicate()
         raise AssertionError(f"{what} hung for more than {timeout_s} s:\n{out}") from None
     return out
+
+
+def free_ports(n: int, stride: int = 8) -> int:
+    """A base port with ``n * stride`` free ports above it (each node binds two)."""
+    for _ in range(50):
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            base = s.getsockname()[1]
+        if base + n * stride < 65000 and all(_free(base + i) for i in range(n * stride)):
+            return base
+    raise RuntimeError("no free port range")
+
+
+def _free(port: int) -> bool:
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", port))
+            return True
+        except OSError:
+            return False

@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -23,33 +22,13 @@ import numpy as np
 import pytest
 import zmq
 import zmq.auth
-from faults_common import ROOT, finish, node_env
+from faults_common import ROOT, finish, free_ports, node_env
 
 from probeless import wire
 from probeless.cli import main
 from probeless.errors import GraphError
 from probeless.messages import Header, Image
 from probeless.runtime.security import node_curve, tool_curve
-
-
-def free_ports(n: int, stride: int = 8) -> int:
-    """A base port with ``n * stride`` free ports above it (each node binds two)."""
-    for _ in range(50):
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            base = s.getsockname()[1]
-        if base + n * stride < 65000 and all(_free(base + i) for i in range(n * stride)):
-            return base
-    raise RuntimeError("no free port range")
-
-
-def _free(port: int) -> bool:
-    with socket.socket() as s:
-        try:
-            s.bind(("127.0.0.1", port))
-            return True
-        except OSError:
-            return False
 
 
 def start(path: Path, *args: str, env: dict | None = None) -> subprocess.Popen:

@@ -10,28 +10,22 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
+from faults_common import free_ports
 from locations import TESTS
 
 FPS, BEFORE_S, STOP_S, AFTER_S = 30, 3.0, 10.0, 3.0
 FRAMES = int(FPS * (BEFORE_S + STOP_S + AFTER_S + 1))
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _graph(tmp: Path, stopped_policy: str, tcp: bool) -> Path:
     queue = ", queue_size: 4" if stopped_policy != "latest" else ""
-    hosts = f"hosts:\n  cam: {{address: 127.0.0.1, port_base: {_free_port()}}}\n" if tcp else ""
+    hosts = f"hosts:\n  cam: {{address: 127.0.0.1, port_base: {free_ports(1)}}}\n" if tcp else ""
     text = f"""{hosts}nodes:
   - id: src
     node: pattern_source
