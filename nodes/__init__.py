@@ -37,6 +37,8 @@ BUILTIN: dict[str, str] = {
     "hdr_cloud_writer": "probeless.nodes.hdr.writer:HdrCloudWriter",
     "pbgi_renderer": "probeless.nodes.pbgi.renderer:PbgiRendererNode",
     "cloud_views": "probeless.nodes.pbgi.views:CloudViews",
+    "rerun_sink": "probeless.nodes.viz.rerun_sink:RerunSink",
+    "foxglove_bridge": "probeless.nodes.viz.foxglove_bridge:FoxgloveBridge",
     "bench_source": "probeless.nodes.bench.bus:BenchSource",
     "bench_sink": "probeless.nodes.bench.bus:BenchSink",
     "bench_camera_source": "probeless.nodes.bench.bag:CameraSource",

@@ -8,6 +8,7 @@ DEB_PACKAGES=(
   libusb-1.0-0          # open3d imports it
   libegl1 libegl-mesa0 libgl1-mesa-dri libgles2   # headless OpenGL (EGL + llvmpipe) for moderngl
   graphviz              # `probeless graph --out g.png`
+  chromium              # tests/viz: the Rerun web viewer in a real browser (driven by playwright)
 )
 
 missing=()

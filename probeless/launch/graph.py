@@ -12,6 +12,7 @@
         inputs:
           image: {source: left/camera/image, queue_size: 2, policy: latest}
           tick: timer/hz/$(arg fps)             # built-in timer: timer/hz/N, timer/ms/N, timer/s/N
+          # all: {source: "*", exclude: [rig/gt/*]} # a pattern: one input per matching topic (launch/globs.py)
         outputs: [image]
         params: {operation: blur}
         restart: on-failure                     # never (default) | on-failure
@@ -42,7 +43,7 @@ from probeless.runtime.queues import POLICIES
 TOP_KEYS = {"description", "args", "hosts", "include", "nodes", "security"}
 NODE_KEYS = {"id", "node", "inputs", "outputs", "params", "restart", "max_restarts", "restart_backoff_s",
              "host", "description"}
-INPUT_KEYS = {"source", "queue_size", "policy", "feedback", "max_bytes"}
+INPUT_KEYS = {"source", "queue_size", "policy", "feedback", "max_bytes", "exclude"}
 INCLUDE_KEYS = {"file", "namespace", "args"}
 DEFAULT_QUEUE = {"policy": "drop_oldest", "queue_size": 10}
 _TIMER = re.compile(r"^timer/(hz|ms|s)/([0-9]*\.?[0-9]+)$")
@@ -61,6 +62,7 @@ class InputDecl:
     timer_period_ns: int | None = None
     feedback: bool = False          # closes a loop: does not keep the node running once its other inputs end
     max_bytes: int | None = None    # byte bound of the queue [bytes]; None = the runtime's default (256 MiB)
+    exclude: tuple[str, ...] = ()   # a pattern source's topics to leave out (probeless.launch.globs)
 
 
 @dataclass
@@ -311,9 +313,17 @@ def _parse_inputs(inputs: Any, line: int, ns: str, decl: NodeDecl, err) -> None:
         if max_bytes is not None and (type(max_bytes) is not int or max_bytes < 1):
             err(f"max_bytes must be an integer >= 1 [bytes], got {max_bytes!r}", iline, decl.id, key)
             continue
+        exclude = spec.get("exclude", [])
+        if not isinstance(exclude, list) or not all(isinstance(x, str) and x for x in exclude):
+            err(f"exclude must be a list of topic patterns, got {exclude!r}", iline, decl.id, key)
+            continue
+        if exclude and not any(c in "*?[" for c in spec["source"]):
+            err("exclude applies to a pattern source (with *, ? or [) only", iline, decl.id, key)
+            continue
         decl.inputs[str(name)] = _input(str(name), spec["source"], ns, policy, size, iline, decl.id, err)
         decl.inputs[str(name)].feedback = feedback
         decl.inputs[str(name)].max_bytes = max_bytes
+        decl.inputs[str(name)].exclude = tuple(_namespaced(x, ns) for x in exclude)
 
 
 def _input(name: str, source: str, ns: str, policy: str, size: int, line: int, node_id: str, err) -> InputDecl:
@@ -327,5 +337,10 @@ def _input(name: str, source: str, ns: str, policy: str, size: int, line: int, n
         value = float(m.group(2))
         inp.timer_period_ns = int({"hz": 1e9 / value, "ms": value * 1e6, "s": value * 1e9}[m.group(1)])
         return inp
-    inp.source = source[1:] if source.startswith("/") else (f"{ns}/{source}" if ns else source)
+    inp.source = _namespaced(source, ns)
     return inp
+
+
+def _namespaced(source: str, ns: str) -> str:
+    """A source (or topic pattern) inside namespace ``ns``; a leading ``/`` makes it absolute."""
+    return source[1:] if source.startswith("/") else (f"{ns}/{source}" if ns else source)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from probeless.errors import GraphError
+from probeless.launch.globs import expand_patterns
 from probeless.launch.graph import Graph, NodeDecl
 from probeless.runtime.node import input_type, output_type
 from probeless.runtime.params import check_params
@@ -22,6 +23,7 @@ def validate(graph: Graph) -> list[GraphError]:
         except GraphError as exc:
             errors.append(GraphError(exc.message, file=decl.file, line=decl.lines.get("node", decl.line),
                                      node_id=decl.id, key="node"))
+    errors += expand_patterns(graph, classes)
     for decl in graph.nodes.values():
         cls = classes.get(decl.id)
         if cls is None:
