@@ -97,8 +97,15 @@ def _add_bag_parsers(sub) -> None:
     c.add_argument("--topics", nargs="+", metavar="TOPIC", help="recorded topics to play (default: all)")
     add_replay_options(c)
     c.set_defaults(func=cmd_bag)
-    for add in (add_info_parser, add_export_parser):
-        add(bags).set_defaults(func=cmd_bag)
+    add_info_parser(bags).set_defaults(func=cmd_bag)
+    add_export_parser(bags, {"rerun": _export_rerun}).set_defaults(func=cmd_bag)
+
+
+def _export_rerun(*args, **kwargs):
+    """``bag export --format rerun``: a recording as a Rerun .rrd (probeless.viz sits above probeless.bag)."""
+    from probeless.viz.rerun_export import export_rerun
+
+    return export_rerun(*args, **kwargs)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any
+from typing import Any, Callable
 
 from probeless.errors import BagError
 
@@ -27,18 +27,22 @@ def add_info_parser(sub: Any) -> argparse.ArgumentParser:
     return p
 
 
-def add_export_parser(sub: Any) -> argparse.ArgumentParser:
-    """Add ``export`` to the subparsers ``sub`` of ``probeless bag``."""
+def add_export_parser(sub: Any, exporters: dict[str, Callable] | None = None) -> argparse.ArgumentParser:
+    """Add ``export`` to the subparsers ``sub`` of ``probeless bag``. ``exporters`` adds formats that live in
+    packages above this one (name -> ``f(paths, out, force=, topics=, progress=) -> ExportSummary``)."""
     from probeless.bag.export import FORMATS
 
-    p = sub.add_parser("export", help="convert a recording: Foxglove MCAP (JSON) or a directory of PNGs")
+    exporters = dict(exporters or {})
+    p = sub.add_parser("export", help="convert a recording: Foxglove MCAP (JSON), a directory of PNGs"
+                       + "".join(f", {name}" for name in exporters))
     p.add_argument("paths", nargs="+", metavar="FILE", help="MCAP file(s) or the name of a split recording")
-    p.add_argument("--format", choices=FORMATS, default="foxglove", help="default: foxglove")
-    p.add_argument("-o", "--out", required=True, help="output .mcap file (foxglove) or directory (png-dir)")
+    p.add_argument("--format", choices=FORMATS + tuple(exporters), default="foxglove", help="default: foxglove")
+    p.add_argument("-o", "--out", required=True,
+                   help="output .mcap file (foxglove), directory (png-dir) or .rrd file (rerun)")
     p.add_argument("--topic", action="append", dest="topics", metavar="TOPIC", help="only this topic (repeatable)")
     p.add_argument("--force", action="store_true", help="overwrite the output")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_export)
+    p.set_defaults(func=cmd_export, exporters=exporters)
     return p
 
 
@@ -69,7 +73,7 @@ def cmd_export(ns: argparse.Namespace) -> int:
     """Export ``ns.paths`` to ``ns.out`` in ``ns.format``; prints what was written and skipped."""
     from probeless.bag.export import export_foxglove, export_png_dir
 
-    run = export_png_dir if ns.format == "png-dir" else export_foxglove
+    run = {"png-dir": export_png_dir, "foxglove": export_foxglove, **(getattr(ns, "exporters", None) or {})}[ns.format]
     progress = not getattr(ns, "no_progress", False) and sys.stderr.isatty()
     try:
         summary = run(ns.paths, ns.out, force=ns.force, topics=getattr(ns, "topics", None), progress=progress)
