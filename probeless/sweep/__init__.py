@@ -1,0 +1,1 @@
+"""`probeless sweep`: grids of graph variants and evaluations over scenes and recordings, locally or on Ray."""
