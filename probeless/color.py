@@ -70,3 +70,10 @@ def luminance(rgb: np.ndarray) -> np.ndarray:
     if a.ndim < 1 or a.shape[-1] != 3:
         raise ProbelessError(f"luminance: expected an (..., 3) RGB array, got shape {a.shape}")
     return a @ REC709_Y
+
+
+def reinhard(radiance: np.ndarray) -> np.ndarray:
+    """Reinhard tone map per channel, ``x / (1 + x)``: linear radiance >= 0 (unbounded; negatives to 0) ->
+    linear 0..1, for showing HDR values on LDR displays (exports, viewers)."""
+    r = np.maximum(np.asarray(radiance, np.float32), 0.0)
+    return r / (1.0 + r)

@@ -21,7 +21,7 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 
-from probeless.color import to_srgb8
+from probeless.color import reinhard, to_srgb8
 
 
 class Notes(Protocol):
@@ -80,12 +80,6 @@ def _fox_pose(msg, topic, s):
 
 def _colors8(colors: np.ndarray) -> np.ndarray:
     return colors if colors.dtype == np.uint8 else to_srgb8(colors)
-
-
-def reinhard(radiance: np.ndarray) -> np.ndarray:
-    """Reinhard tone map per channel, ``x / (1 + x)``: linear radiance >= 0 (unbounded) -> linear 0..1."""
-    r = np.maximum(np.asarray(radiance, np.float32), 0.0)
-    return r / (1.0 + r)
 
 
 def _fox_cloud(msg, topic, s):

@@ -1,0 +1,28 @@
+"""The default Rerun layout of a probeless run (entity tree: :mod:`probeless.viz.rerun_logger`).
+
+Every view names the entities of the main pipeline (launch/probeless.yaml); a view whose entities a graph
+does not publish stays empty, which Rerun shows as an empty panel (other graphs still get the 3D scene
+and the time series of their own topics).
+"""
+
+from __future__ import annotations
+
+import rerun.blueprint as rrb
+
+CAMERA = "/world/camera/rgbd/image"
+FISHEYE = ("/undistort/image", "/interp/fisheye", "/rig/fisheye")
+ATLAS = ("/texturer/atlas", "/texturer/observed", "/texturer/occlusion")
+ENVMAPS = "/envmap/envmaps"
+
+
+def default_blueprint() -> rrb.Blueprint:
+    """3D world | camera, fisheye, atlas, cubemap nets, timings, composited frame; time panel collapsed."""
+    scene = rrb.Spatial3DView(origin="/world", name="3D scene")
+    camera = rrb.Spatial2DView(origin=CAMERA, name="RGB-D camera")
+    fisheye = rrb.Tabs(*(rrb.Spatial2DView(origin=p, name=p.strip("/")) for p in FISHEYE), name="fisheye")
+    atlas = rrb.Tabs(*(rrb.Spatial2DView(origin=p, name=p.strip("/")) for p in ATLAS), name="atlas")
+    nets = rrb.Spatial2DView(origin=ENVMAPS, name="cubemap nets")
+    augmented = rrb.Spatial2DView(origin="/compositor/image", name="augmented frame")
+    timings = rrb.TimeSeriesView(origin="/timings", name="timings [ms]")
+    images = rrb.Grid(camera, augmented, fisheye, atlas, nets, timings)
+    return rrb.Blueprint(rrb.Horizontal(scene, images, column_shares=[1, 1]), collapse_panels=False)

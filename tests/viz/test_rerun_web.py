@@ -1,0 +1,131 @@
+"""The Rerun web viewer in a real browser (Debian's headless Chromium), served by a running graph's rerun_sink.
+
+- The lounge pipeline with ``viewer:=rerun``: the viewer page loads, connects to the sink's gRPC server and
+  receives data; the screenshot goes to ``out/viz/rerun_lounge.png`` for a person to look at (the README's).
+- A stalled viewer (the whole browser SIGSTOPped: it stops reading) does not lower the graph's frame rate.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from browser import page_at, rerun_viewer_url, wait_for
+from faults.faults_common import finish, free_ports, node_env
+from locations import REPO
+
+SHOT = REPO / "out" / "viz" / "rerun_lounge.png"
+
+
+def _launch(*args: str, cwd: Path = REPO) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-u", "-m", "probeless.cli", "launch", *args], cwd=cwd, env=node_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
+def _wait_line(proc: subprocess.Popen, needle: str, timeout_s: float, seen: list[str]) -> str:
+    """Read the launcher's output until a line holds ``needle`` (kept in ``seen``)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line and proc.poll() is not None:
+            break
+        seen.append(line)
+        if needle in line:
+            return line
+    raise AssertionError(f"no line with {needle!r} in {timeout_s:g} s:\n{''.join(seen)[-4000:]}")
+
+
+@pytest.mark.graph
+@pytest.mark.slow
+@pytest.mark.timeout(420)
+def test_web_viewer_loads_connects_and_shows_the_lounge_pipeline(tmp_path):
+    web, grpc = free_ports(2)
+    rrd = tmp_path / "run.rrd"
+    proc = _launch("launch/probeless.yaml", "viewer:=rerun", "seconds:=4", f"out_dir:={tmp_path}",
+                   f"rerun_port:={web}", f"rerun_grpc_port:={grpc}", f"viewer_rrd:={rrd}")
+    seen: list[str] = []
+    try:
+        _wait_line(proc, f"http://127.0.0.1:{web}/", 120, seen)     # the sink says where the viewer is
+        with page_at(rerun_viewer_url(web, grpc)) as (page, console, _):
+            wait_for(console, r"Web app started", 90, page)
+            wait_for(console, rf"Streaming messages from gRPC endpoint.*port: {grpc}", 60, page)
+            wait_for(console, r"re_sorbet", 120, page)              # record batches arrived and were decoded
+            out = seen + [finish(proc, 300, "launch probeless.yaml viewer:=rerun")]
+            page.wait_for_timeout(4000)                              # the viewer keeps what it received
+            SHOT.parent.mkdir(parents=True, exist_ok=True)
+            page.screenshot(path=str(SHOT))
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    log = "".join(out)
+    assert proc.returncode == 0, log[-4000:]
+    import cv2
+
+    shot = cv2.imread(str(SHOT))
+    assert shot is not None and shot.shape[:2] == (900, 1600)
+    assert float(shot.std()) > 20.0, "the screenshot is blank"
+    assert rrd.stat().st_size > 0 and "rerun" in log
+
+
+FPS, BEFORE_S, STOP_S = 30, 4.0, 10.0
+
+
+@pytest.mark.graph
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_stalled_viewer_does_not_slow_the_graph(tmp_path):
+    """pattern_source at 30 Hz -> a sink that logs arrivals and the rerun_sink serving a connected web viewer;
+    the browser is stopped for 10 s (it stops reading): the other sink keeps >= 0.95x its rate."""
+    web, grpc = free_ports(2)
+    frames = int(FPS * (BEFORE_S + STOP_S + 30))
+    graph = tmp_path / "g.yaml"
+    graph.write_text(f"""nodes:
+  - id: src
+    node: pattern_source
+    inputs: {{tick: timer/hz/{FPS}}}
+    params: {{width: 640, height: 480, count: {frames}}}
+  - id: running
+    node: nodes_for_tests:ArrivalLog
+    inputs: {{image: {{source: src/image, policy: latest}}}}
+    params: {{out: {tmp_path}/running.json}}
+  - id: rerun
+    node: rerun_sink
+    inputs: {{all: {{source: "src/*", policy: latest}}}}
+    params: {{serve: true, web_port: {web}, grpc_port: {grpc}, memory_limit: 64MiB}}
+""")
+    proc = _launch(str(graph))
+    seen: list[str] = []
+    figures = {}
+    try:
+        _wait_line(proc, f"http://127.0.0.1:{web}/", 120, seen)
+        with page_at(rerun_viewer_url(web, grpc)) as (page, console, browser):
+            wait_for(console, rf"Streaming messages from gRPC endpoint.*port: {grpc}", 90, page)
+            wait_for(console, r"re_sorbet", 60, page)
+            page.wait_for_timeout(BEFORE_S * 1000)
+            t_stop = time.time_ns()
+            os.killpg(browser.pid, signal.SIGSTOP)                    # the viewer stops reading
+            time.sleep(STOP_S)
+            t_cont = time.time_ns()
+            os.killpg(browser.pid, signal.SIGCONT)
+        os.killpg(proc.pid, signal.SIGINT)                            # end the run: the sinks write their logs
+        out = seen + [finish(proc, 120, "launch stalled-viewer graph")]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    arrivals = np.array([t for _, t in json.loads((tmp_path / "running.json").read_text())["log"]["image"]])
+    before = np.sum((arrivals >= t_stop - int(BEFORE_S * 1e9)) & (arrivals < t_stop)) / BEFORE_S
+    during = np.sum((arrivals >= t_stop + int(0.2e9)) & (arrivals < t_cont)) / ((t_cont - t_stop) / 1e9 - 0.2)
+    figures = {"running_sink_hz_before": round(float(before), 2), "running_sink_hz_while_viewer_stopped":
+               round(float(during), 2), "ratio": round(float(during / before), 3)}
+    if os.environ.get("PROBELESS_VIEWER_REPORT"):
+        Path(os.environ["PROBELESS_VIEWER_REPORT"]).write_text(json.dumps({"rerun_stalled_viewer": figures}))
+    assert before > 0.5 * FPS, ("".join(out)[-3000:], figures)
+    assert during >= 0.95 * before, figures
+
