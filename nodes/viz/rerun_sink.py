@@ -73,6 +73,10 @@ class RerunSink(Node):
         memory_limit: str = param("512MiB", doc="buffer of the served or spawned viewer, e.g. 512MiB, 2GiB, 25%")
         open_browser: bool = param(False, doc="serve: also open the web viewer in the default browser")
         max_hz: float = param(0.0, min=0.0, doc="log at most this many messages per second per topic; 0 = all")
+        linger_s: float = param(0.0, min=0.0, max=3600.0, doc="serve: keep serving this long after the inputs "
+                                "end, so a web viewer still catching up reads the whole run [s]")
+        jpeg_quality: int = param(0, min=0, max=100, doc="send 8-bit grey/RGB images as JPEG of this quality "
+                                  "(a tenth of the bytes for the viewer); 0 = raw pixels")
         application_id: str = param("probeless", doc="Rerun application id (the viewer keys layouts by it)")
         texture_period_s: float = param(1.0, min=0.0, doc="re-texture a mesh with a new atlas at most this often [s]")
         pairs: tuple[str, ...] = param((), check=_pairs_problem,
@@ -92,7 +96,8 @@ class RerunSink(Node):
         self.stream.set_sinks(*self._sinks())
         self.stream.send_blueprint(default_blueprint())
         self.logger = RerunLogger(self.stream, pairs=dict(s.split("=") for s in p.pairs),
-                                  texture_period_s=p.texture_period_s)
+                                  texture_period_s=p.texture_period_s, blueprint=default_blueprint,
+                                  jpeg_quality=p.jpeg_quality)
         self.period = 1.0 / p.max_hz if p.max_hz > 0 else 0.0
         self.last: dict[str, float] = {}
         self.dropped: dict[str, int] = defaultdict(int)
@@ -145,4 +150,9 @@ class RerunSink(Node):
             self.ctx.log.warning("rerun: flush failed: %s", exc)
         dropped = sum(self.dropped.values())
         self.ctx.log.info("%s; %d dropped by max_hz", logger.summary_line(), dropped)
+        if self.params.serve and self.params.linger_s > 0:
+            # the web viewer reads from our gRPC server: a viewer still catching up keeps getting data
+            self.ctx.log.info("rerun: serving the run to web viewers for %g s more (Ctrl-C ends it)",
+                              self.params.linger_s)
+            time.sleep(self.params.linger_s)
         self.stream.disconnect()

@@ -36,6 +36,20 @@ def resolve_args(decl: Any, overrides: dict, err, line: int, is_root: bool) -> d
     return out
 
 
+_INT = re.compile(r"-?(0|[1-9][0-9]*)")
+_FLOAT = re.compile(r"-?([0-9]+\.[0-9]*|\.[0-9]+|[0-9]+(\.[0-9]*)?[eE][-+]?[0-9]+)")
+
+
+def env_scalar(text: str) -> Any:
+    """An environment value standing alone as a param: a plain decimal number or true/false becomes one
+    (``linger_s: $(env LINGER 5.0)``); anything else, leading zeros included, stays the string it is."""
+    if _INT.fullmatch(text):
+        return int(text)
+    if _FLOAT.fullmatch(text):
+        return float(text)
+    return {"true": True, "false": False}.get(text, text)
+
+
 class Substituter:
     """Applies $(arg)/$(env)/$(dirname) to every string in a value."""
 
@@ -58,7 +72,8 @@ class Substituter:
     def _string(self, text: str, line: int) -> Any:
         whole = _SUBST.fullmatch(text)
         if whole:
-            return self._value(whole, line)
+            value = self._value(whole, line)
+            return env_scalar(value) if whole.group(1) == "env" else value
         return _SUBST.sub(lambda m: str(self._value(m, line)), text)
 
     def _value(self, m: re.Match, line: int) -> Any:

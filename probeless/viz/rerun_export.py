@@ -67,7 +67,7 @@ def export_rerun(src: str | Path | Sequence[str | Path], out: str | Path, *, for
     try:
         stream.save(out)
         stream.send_blueprint(default_blueprint())
-        logger = RerunLogger(stream)
+        logger = RerunLogger(stream, blueprint=default_blueprint)
         with progress_bar(total, f"export {out.name}", progress) as tick:
             for r in readers:
                 for ch, rec in r.records(topics=topics, on_corrupt=summary.warnings.append):

@@ -33,12 +33,13 @@ Entity tree (timeline ``stamp``: every message is logged at its ``header.stamp_n
 from __future__ import annotations
 
 from collections import defaultdict
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import rerun as rr
 
 from probeless.viz import rerun_map as m
+from probeless.viz.blueprint import room_eye
 from probeless.viz.rerun_map import Log, camera_path, entity
 
 TIMELINE = "stamp"
@@ -58,8 +59,12 @@ def _info_key(info: Any) -> tuple:
 class RerunLogger:
     """Logs each message of a topic as its Rerun archetypes on ``stream`` (see the module doc)."""
 
-    def __init__(self, stream: Any, *, pairs: dict[str, str] | None = None, texture_period_s: float = 1.0):
+    def __init__(self, stream: Any, *, pairs: dict[str, str] | None = None, texture_period_s: float = 1.0,
+                 blueprint: Callable[..., Any] | None = None, jpeg_quality: int = 0):
         self.stream = stream
+        self.jpeg_quality = jpeg_quality    # > 0: 8-bit grey/RGB images go out as JPEG (rerun_map.image)
+        self.blueprint = blueprint          # blueprint(eye) re-sent when the first floorplan shows the room
+        self._room_seen = False
         self.pairs = dict(pairs or {})                      # mesh topic -> atlas topic
         self.texture_period_ns = int(texture_period_s * 1e9)
         self.logged: dict[str, int] = defaultdict(int)
@@ -80,7 +85,7 @@ class RerunLogger:
             "sensor/Image": self._image, "sensor/DepthImage": self._depth,
             "mesh/PointCloud": lambda t, msg: m.point_cloud(t, msg),
             "mesh/HdrPointCloud": lambda t, msg: m.hdr_point_cloud(t, msg),
-            "mesh/TriangleMesh": self._mesh, "geometry/Floorplan": lambda t, msg: m.floorplan(t, msg),
+            "mesh/TriangleMesh": self._mesh, "geometry/Floorplan": self._floorplan,
             "lighting/Cubemap": lambda t, msg: m.cubemap(t, msg),
             "lighting/SHCoefficients": lambda t, msg: m.sh_coefficients(t, msg),
             "lighting/BrightnessDelta": self._delta,
@@ -179,7 +184,8 @@ class RerunLogger:
 
     def _image(self, topic: str, msg: Any) -> list[Log]:
         path = self.image_path(topic, msg)
-        out = [Log(path, m.image(msg, opacity=1.0 if path.startswith("/world/") else None))]
+        out = [Log(path, m.image(msg, opacity=1.0 if path.startswith("/world/") else None,
+                                 jpeg_quality=self.jpeg_quality))]
         meshes = [t for t in self.meshes if self.atlas_of(t) == topic]
         if meshes or topic in self.pairs.values() or topic.endswith("/atlas"):
             stamp = msg.header.stamp_ns
@@ -191,6 +197,12 @@ class RerunLogger:
 
     def _depth(self, topic: str, msg: Any) -> list[Log]:
         return [Log(self.image_path(topic, msg), m.depth(msg))]
+
+    def _floorplan(self, topic: str, msg: Any) -> list[Log]:
+        if self.blueprint is not None and not self._room_seen:   # aim the 3D view at the room, once
+            self._room_seen = True
+            self.stream.send_blueprint(self.blueprint(room_eye(msg.vertices, msg.ceiling_height)))
+        return m.floorplan(topic, msg)
 
     def _mesh(self, topic: str, msg: Any) -> list[Log]:
         self.meshes[topic] = msg

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
+import cv2
 import numpy as np
 import rerun as rr
 
@@ -135,10 +136,16 @@ def display_pixels(msg: Any) -> tuple[np.ndarray, str]:
     return aligned(data[..., 0] if data.shape[2] == 1 else data), model
 
 
-def image(msg: Any, opacity: float | None = None) -> rr.Image:
+def image(msg: Any, opacity: float | None = None, jpeg_quality: int = 0) -> rr.Image | rr.EncodedImage:
     """Image archetype of a probeless Image (see :func:`display_pixels`); ``opacity`` 1 keeps a camera's image
-    opaque over its depth image (the viewer otherwise blends layered images)."""
+    opaque over its depth image (the viewer otherwise blends layered images). ``jpeg_quality`` > 0 sends 8-bit
+    grey and RGB images as JPEG (an EncodedImage: a tenth of the bytes for a viewer across a network)."""
     pixels, model = display_pixels(msg)
+    if jpeg_quality > 0 and pixels.dtype == np.uint8 and model in ("L", "RGB", "BGR"):
+        bgr = pixels[..., ::-1] if model == "RGB" else pixels       # OpenCV writes BGR (and grey) JPEGs
+        ok, jpeg = cv2.imencode(".jpg", np.ascontiguousarray(bgr), [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
+        if ok:
+            return rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg", opacity=opacity)
     return rr.Image(pixels, color_model=model, opacity=opacity)
 
 
@@ -190,7 +197,10 @@ def mesh(msg: Any, texture: np.ndarray | None = None) -> rr.Mesh3D:
     if texture is not None and len(msg.uvs):
         kw["vertex_texcoords"] = texcoords(msg.uvs)
         kw["albedo_texture"] = texture
-    return rr.Mesh3D(vertex_positions=aligned(msg.vertices), triangle_indices=aligned(msg.triangles, np.uint32), **kw)
+    # front faces only (counter-clockwise, the TriangleMesh convention): the room prism faces inwards, so from
+    # outside its near walls and ceiling vanish and the textured inside shows (a dollhouse view)
+    return rr.Mesh3D(vertex_positions=aligned(msg.vertices), triangle_indices=aligned(msg.triangles, np.uint32),
+                     face_rendering=rr.components.MeshFaceRendering.Front, **kw)
 
 
 def floorplan(topic: str, msg: Any) -> list[Log]:

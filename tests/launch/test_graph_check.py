@@ -92,6 +92,19 @@ def test_arg_defaults_take_dirname_and_env_substitutions(tmp_path, monkeypatch):
     assert graph.nodes["sink"].params == {"out_dir": "given/from-env"}
 
 
+def test_an_env_value_standing_alone_is_typed_like_a_command_line_value(tmp_path, monkeypatch):
+    g = tmp_path / "g.yaml"
+    g.write_text("nodes:\n  - id: cam\n    node: pattern_source\n    inputs: {tick: timer/hz/5}\n"
+                 "    params: {count: $(env PROBELESS_TEST_COUNT 3), width: $(env PROBELESS_TEST_W)}\n")
+    monkeypatch.setenv("PROBELESS_TEST_W", "320")
+    graph = parse_graph(g)
+    assert graph.nodes["cam"].params == {"count": 3, "width": 320} and validate(graph) == []
+    monkeypatch.setenv("PROBELESS_TEST_W", "0320")          # leading zeros: not a number, stays text
+    graph = parse_graph(g)
+    assert graph.nodes["cam"].params["width"] == "0320"
+    assert "expected int, got str '0320'" in validate(graph)[0].message
+
+
 def test_arg_defaults_may_use_arguments_declared_above(tmp_path):
     g = tmp_path / "g.yaml"
     g.write_text("args:\n  scene: a.yaml\n  objects: {default: $(arg scene)}\n  both: $(arg scene)+$(arg objects)\n"

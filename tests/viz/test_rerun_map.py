@@ -16,7 +16,7 @@ from probeless.cameras import model_from_info
 from probeless.color import to_srgb8
 from probeless.geom.rotation import matrix_from_quat
 from probeless.messages.diagnostics import NodeStatus, StageTiming
-from probeless.messages.geometry import PoseStamped
+from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.lighting import BrightnessDelta, Cubemap
 from probeless.messages.mesh import TriangleMesh
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
@@ -255,6 +255,42 @@ def test_diagnostics_on_the_host_clock_sit_beside_scene_time_data():
     near = NodeStatus(header("", 2_600_000_000), "slam", "running", 3.0)  # same clock (stamps:=wall): kept
     log.log("slam/diagnostics", near)
     assert s.logs[-1][3] == 2_600_000_000
+
+
+def test_the_first_floorplan_aims_the_3d_view_at_the_room():
+    sent = []
+    s = FakeStream()
+    s.send_blueprint = sent.append
+    log = RerunLogger(s, blueprint=lambda eye: eye)
+    verts = np.array([[0.0, 0], [6, 0], [6, 3], [3, 3], [3, 5], [0, 5]])
+    for _ in range(2):
+        log.log("rig/floorplan", Floorplan(header("world"), verts, 2.5))
+    assert len(sent) == 1                              # once
+    eye = sent[0]
+    target = values(eye.look_target)
+    position = values(eye.position)
+    assert target.tolist() == pytest.approx([3.0, 2.5, 0.75])      # the middle of the room's bounding box
+    assert position[2] > 2.5 and position[1] < 0.0                  # above the ceiling, in front of the room
+
+
+@pytest.mark.parametrize("encoding", ["rgb8", "bgr8", "mono8"])
+def test_jpeg_images_decode_to_the_frame(encoding):
+    """jpeg_quality > 0: 8-bit colour and grey frames go out as JPEG; OpenCV decodes the blob to the frame."""
+    import cv2
+
+    yy, xx = np.mgrid[0:48, 0:64]
+    rgb = np.stack([xx * 4, yy * 5, (xx + yy) * 2], axis=2).astype(np.uint8)   # smooth: JPEG keeps it close
+    data = {"rgb8": rgb, "bgr8": rgb[..., ::-1], "mono8": rgb[..., :1]}[encoding]
+    s = FakeStream()
+    RerunLogger(s, jpeg_quality=90).log("cam/image", Image(header("cam"), np.ascontiguousarray(data), encoding))
+    (encoded,) = s.at("/cam/image", rr.EncodedImage)
+    blob = values(encoded.blob).astype(np.uint8)
+    decoded = cv2.imdecode(blob, cv2.IMREAD_UNCHANGED)
+    want = rgb[..., 0] if encoding == "mono8" else rgb[..., ::-1]             # OpenCV decodes to BGR
+    assert decoded.shape == want.shape and np.abs(decoded.astype(int) - want).mean() < 2.0
+    rgba = Image(header("cam"), np.zeros((4, 4, 4), np.uint8), "rgba8")     # alpha: JPEG has none, kept raw
+    RerunLogger(s, jpeg_quality=90).log("cam/rgba", rgba)
+    assert s.at("/cam/rgba", rr.Image) and not s.at("/cam/rgba", rr.EncodedImage)
 
 
 def test_brightness_delta_series():
