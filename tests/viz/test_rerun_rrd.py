@@ -128,6 +128,18 @@ def test_export_rerun_reads_back_with_the_dataframe_api(recording, tmp_path):
     assert Rrd(out).archetypes.keys() == {"/world", "/rig/rgb"}  # no camera info: a 2D image
 
 
+def test_bag_export_format_rerun_on_the_command_line(recording, tmp_path, capsys):
+    from probeless.cli import main
+
+    out = tmp_path / "cli.rrd"
+    assert main(["bag", "export", str(recording), "--format", "rerun", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert f"wrote {out}" in text and "rig/rgb:" in text and "-> rerun Image" in text
+    assert Rrd(out).stamps["/world/camera/rgbd/image/rig/rgb"] == [T0 + i * DT for i in range(N)]
+    assert main(["bag", "export", str(recording), "--format", "rerun", "-o", str(out)]) == 2   # no overwrite
+    assert "already exists; pass --force" in capsys.readouterr().err
+
+
 def test_export_rerun_skips_a_corrupt_chunk_with_a_warning(recording, tmp_path):
     with BagReader(recording) as r:
         chunk = r._chunks[1]
