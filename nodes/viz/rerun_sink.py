@@ -152,7 +152,7 @@ class RerunSink(Node):
         self.ctx.log.info("%s; %d dropped by max_hz", logger.summary_line(), dropped)
         if self.params.serve and self.params.linger_s > 0:
             # the web viewer reads from our gRPC server: a viewer still catching up keeps getting data
-            self.ctx.log.info("rerun: serving the run to web viewers for %g s more (Ctrl-C ends it)",
+            self.ctx.log.info("serving the run to web viewers for %g s more (Ctrl-C ends it)",
                               self.params.linger_s)
             time.sleep(self.params.linger_s)
         self.stream.disconnect()
