@@ -173,6 +173,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_eval_parser(sub)
     add_slam_parser(sub)
 
+    from probeless.sweep.cli import add_sweep_parser
+
+    add_sweep_parser(sub)
+
     from probeless.hdr.cli import add_hdr_parser
 
     add_hdr_parser(sub)

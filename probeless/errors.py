@@ -90,3 +90,20 @@ class HdrError(ProbelessError):
 
 class PbgiError(ProbelessError):
     """Point-based global illumination: a bad cloud, hierarchy or render setting (paper 001, §5)."""
+
+
+class SweepError(ProbelessError):
+    """A sweep file is invalid (unknown key, missing file, bad argument) or a sweep cannot run.
+    Carries where: file, line and key, formatted like :class:`GraphError` (``file:line: key 'k': message``)."""
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None, key: str | None = None):
+        self.message = message
+        self.file = file
+        self.line = line
+        self.key = key
+        super().__init__(self.format())
+
+    def format(self) -> str:
+        where = (f"{self.file}:{self.line}" if self.line else self.file) if self.file else ""
+        parts = [p for p in (where, f"key '{self.key}'" if self.key else "") if p]
+        return f"{': '.join(parts)}: {self.message}" if parts else self.message
