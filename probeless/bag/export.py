@@ -55,8 +55,22 @@ class ExportSummary:
 # -- driving -------------------------------------------------------------------------------------
 
 
-def _messages(sources: Sequence[Path], topics: Sequence[str] | None,
-              summary: ExportSummary) -> tuple[list[BagReader], int]:
+def export_sources(src: str | Path | Sequence[str | Path], out: str | Path,
+                   force: bool) -> tuple[list[Path], Path]:
+    """(recording files, output path) of an export to one file; BagError when ``out`` is one of the inputs or
+    exists without ``force``."""
+    sources, out = recording_paths(src), Path(out)
+    if any(out.resolve() == p.resolve() for p in sources if out.exists()):
+        raise BagError(f"{out}: output would overwrite the recording being exported")
+    if out.exists() and not force:
+        raise BagError(f"{out} already exists; pass --force to overwrite it")
+    return sources, out
+
+
+def open_readers(sources: Sequence[Path], topics: Sequence[str] | None,
+                 summary: ExportSummary) -> tuple[list[BagReader], int]:
+    """Readers of every file (all closed again if one fails) and the number of messages to export; truncated
+    files are noted in ``summary.warnings``."""
     readers = []
     try:
         for p in sources:
@@ -88,13 +102,9 @@ def export_foxglove(src: str | Path | Sequence[str | Path], out: str | Path, *, 
     """Rewrite a recording (file, parts, or split set) into ``out`` with Foxglove JSON schemas."""
     from mcap.writer import CompressionType, Writer
 
-    sources, out = recording_paths(src), Path(out)
-    if any(out.resolve() == p.resolve() for p in sources if out.exists()):
-        raise BagError(f"{out}: output would overwrite the recording being exported")
-    if out.exists() and not force:
-        raise BagError(f"{out} already exists; pass --force to overwrite it")
+    sources, out = export_sources(src, out, force)
     summary = ExportSummary()
-    readers, total = _messages(sources, topics, summary)
+    readers, total = open_readers(sources, topics, summary)
     try:
         with open(out, "wb") as f, progress_bar(total, f"export {out.name}", progress) as tick:
             writer = Writer(f, compression=CompressionType.ZSTD)
@@ -165,7 +175,7 @@ def export_png_dir(src: str | Path | Sequence[str | Path], out_dir: str | Path, 
         else:
             out_dir.unlink()
     summary = ExportSummary()
-    readers, total = _messages(sources, topics, summary)
+    readers, total = open_readers(sources, topics, summary)
     csvs: dict[str, Any] = {}
     try:
         with progress_bar(total, f"export {out_dir.name}/", progress) as tick:

@@ -12,34 +12,15 @@ from typing import Sequence
 
 import rerun as rr
 
-from probeless.bag.export import ExportSummary
+from probeless.bag.export import ExportSummary, export_sources, open_readers
 from probeless.bag.foreign import not_decodable
 from probeless.bag.format import MESSAGE_ENCODING
-from probeless.bag.reader import BagReader
-from probeless.bag.writer import recording_paths
 from probeless.errors import BagError
 from probeless.progress import progress as progress_bar
 from probeless.viz.blueprint import default_blueprint
 from probeless.viz.rerun_logger import RerunLogger
 
 APPLICATION_ID = "probeless"
-
-
-def _open(sources: Sequence[Path], topics: Sequence[str] | None, summary: ExportSummary) -> tuple[list, int]:
-    readers: list[BagReader] = []
-    try:
-        for p in sources:
-            readers.append(BagReader(p))
-    except BagError:
-        for r in readers:
-            r.close()
-        raise
-    total = 0
-    for r in readers:
-        if r.truncated:
-            summary.warnings.append(f"{r.path}: {r.truncation_note}")
-        total += sum(t.count for t in r.topics().values() if topics is None or t.topic in topics)
-    return readers, total
 
 
 def _fill(summary: ExportSummary, logger: RerunLogger) -> None:
@@ -54,15 +35,11 @@ def _fill(summary: ExportSummary, logger: RerunLogger) -> None:
 def export_rerun(src: str | Path | Sequence[str | Path], out: str | Path, *, force: bool = False,
                  topics: Sequence[str] | None = None, progress: bool = False) -> ExportSummary:
     """Write a recording (file, parts, or split set) to the Rerun file ``out``; the per-topic counts."""
-    sources, out = recording_paths(src), Path(out)
-    if any(out.resolve() == p.resolve() for p in sources if out.exists()):
-        raise BagError(f"{out}: output would overwrite the recording being exported")
-    if out.exists() and not force:
-        raise BagError(f"{out} already exists; pass --force to overwrite it")
+    sources, out = export_sources(src, out, force)
     if not out.parent.is_dir():
         raise BagError(f"cannot write {out}: no directory {out.parent}")
     summary = ExportSummary()
-    readers, total = _open(sources, topics, summary)
+    readers, total = open_readers(sources, topics, summary)
     stream = rr.RecordingStream(APPLICATION_ID)
     try:
         stream.save(out)

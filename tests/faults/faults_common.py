@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import socket
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
 
 TESTS_DIR = Path(__file__).resolve().parent
@@ -63,3 +66,59 @@ def _free(port: int) -> bool:
             return True
         except OSError:
             return False
+
+
+def start_launch(path: Path, *args: str, env: dict | None = None) -> subprocess.Popen:
+    """``probeless launch PATH ARGS`` in the background, in its own process group, output piped."""
+    return subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(path), *args], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env or node_env(),
+                            start_new_session=True)
+
+
+class RunningGraph:
+    """A ``probeless launch`` in the background whose output is read as it comes: wait for a line, then stop it
+    with SIGINT (a clean stop: every node's close runs)."""
+
+    def __init__(self, path: Path, *args: str, env: dict | None = None):
+        self.proc = start_launch(path, *args, env=env)
+        self.lines: list[str] = []
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            self.lines.append(line)
+
+    @property
+    def output(self) -> str:
+        return "".join(self.lines)
+
+    def wait_for(self, pattern: str, timeout_s: float = 60.0) -> re.Match:
+        """The first match of ``pattern`` in the output; fails the test if the graph ends or times out first."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            m = re.search(pattern, self.output)
+            if m:
+                return m
+            if self.proc.poll() is not None:
+                self.reader.join(5)
+                break
+            time.sleep(0.05)
+        self.stop()
+        raise AssertionError(f"no {pattern!r} in the graph's output:\n{self.output}")
+
+    def wait_started(self, timeout_s: float = 60.0) -> None:
+        """Until the launcher says the graph is starting (every node ready)."""
+        self.wait_for(r"(?m)^\[launch\].*starting$", timeout_s)
+
+    def stop(self, timeout_s: float = 60.0) -> str:
+        """SIGINT, then the whole output (SIGKILL of the group after ``timeout_s``)."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()
+        self.reader.join(5)
+        return self.output

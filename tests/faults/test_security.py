@@ -10,8 +10,6 @@ key would. Every subprocess has a timeout.
 from __future__ import annotations
 
 import json
-import os
-import signal
 import subprocess
 import sys
 import threading
@@ -22,52 +20,13 @@ import numpy as np
 import pytest
 import zmq
 import zmq.auth
-from faults_common import ROOT, finish, free_ports, node_env
+from faults_common import ROOT, RunningGraph, finish, free_ports, node_env, start_launch
 
 from probeless import wire
 from probeless.cli import main
 from probeless.errors import GraphError
 from probeless.messages import Header, Image
 from probeless.runtime.security import node_curve, tool_curve
-
-
-def start(path: Path, *args: str, env: dict | None = None) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(path), *args], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env or node_env(),
-                            start_new_session=True)
-
-
-class Running:
-    """A ``probeless launch`` in the background: wait until its graph starts, then stop it with SIGINT."""
-
-    def __init__(self, path: Path, *args: str, env: dict | None = None):
-        self.proc = start(path, *args, env=env)
-        self.lines: list[str] = []
-        self.started = threading.Event()
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
-
-    def _read(self) -> None:
-        for line in self.proc.stdout:
-            self.lines.append(line)
-            if line.startswith("[launch]") and line.rstrip().endswith("starting"):
-                self.started.set()
-
-    def wait_started(self, timeout_s: float = 60.0) -> None:
-        if not self.started.wait(timeout_s):
-            self.stop()
-            raise AssertionError("graph did not start:\n" + "".join(self.lines))
-
-    def stop(self, timeout_s: float = 60.0) -> str:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-        try:
-            self.proc.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            self.proc.wait()
-        self.reader.join(5)
-        return "".join(self.lines)
 
 
 def keys(tmp_path: Path) -> Path:
@@ -104,9 +63,9 @@ def test_two_host_graph_runs_end_to_end(tmp_path, curve):
     if curve:
         keys(tmp_path)
     path, _ = two_host_graph(tmp_path, count=40, curve=curve)
-    gpu = start(path, "--only", "gpu_pc")
+    gpu = start_launch(path, "--only", "gpu_pc")
     time.sleep(0.5)
-    cam = start(path, "--only", "camera_pc")
+    cam = start_launch(path, "--only", "camera_pc")
     cam_out, gpu_out = finish(cam), finish(gpu)
     assert cam.returncode == 0 and gpu.returncode == 0, cam_out + gpu_out
     assert json.loads((tmp_path / "sink.json").read_text())["seqs"]["image"] == list(range(40))
@@ -141,7 +100,7 @@ def test_subscriber_without_an_allowed_key_receives_nothing(tmp_path):
     gpu_pair = zmq.auth.load_certificate(key_dir / "private" / "gpu_pc.key_secret")
     stranger = zmq.curve_keypair()
     env = {**node_env(), "PROBELESS_RUN_DIR": str(tmp_path / "runs")}   # the topic tool finds this graph alone
-    graph = Running(path, env=env)
+    graph = RunningGraph(path, env=env)
     try:
         graph.wait_started()
         time.sleep(0.5)   # streaming
@@ -228,7 +187,7 @@ nodes:
               for i, n in enumerate(ports)]
     for t in rogues:
         t.start()
-    graph = Running(path, "--only", "gpu_pc")
+    graph = RunningGraph(path, "--only", "gpu_pc")
     try:
         graph.wait_started()
         time.sleep(3.0)   # the sink connects to every rogue and listens

@@ -13,15 +13,9 @@ from __future__ import annotations
 import asyncio
 import base64
 import json
-import os
 import re
-import signal
 import socket
 import struct
-import subprocess
-import sys
-import threading
-import time
 from pathlib import Path
 
 import jsonschema
@@ -29,7 +23,7 @@ import msgpack
 import numpy as np
 import pytest
 import websockets
-from faults.faults_common import ROOT, node_env
+from faults.faults_common import RunningGraph
 from message_examples import examples
 
 from probeless import wire
@@ -50,53 +44,11 @@ N = 4
 
 # -- a graph in the background and a Foxglove client (also used by test_foxglove_backpressure) ----
 
-class Graph:
-    """``probeless launch PATH`` in its own session; its output collected line by line."""
-
-    def __init__(self, path: Path):
-        self.proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(path)], cwd=ROOT,
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=node_env(),
-                                     start_new_session=True)
-        self.lines: list[str] = []
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
-
-    def _read(self) -> None:
-        for line in self.proc.stdout:
-            self.lines.append(line)
-
-    @property
-    def output(self) -> str:
-        return "".join(self.lines)
-
-    def wait_for(self, pattern: str, timeout_s: float = 60.0) -> re.Match:
-        """The first match of ``pattern`` in the output; fails the test if the graph ends or times out first."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            m = re.search(pattern, self.output)
-            if m:
-                return m
-            if self.proc.poll() is not None:
-                self.reader.join(5)
-                break
-            time.sleep(0.05)
-        self.stop()
-        raise AssertionError(f"no {pattern!r} in the graph's output:\n{self.output}")
+class Graph(RunningGraph):
+    """A launched graph with a foxglove_bridge."""
 
     def bridge_port(self) -> int:
         return int(self.wait_for(r"Foxglove: open connection ws://127\.0\.0\.1:(\d+)").group(1))
-
-    def stop(self, timeout_s: float = 60.0) -> str:
-        """SIGINT (a clean stop: every node's close runs), then the whole output."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-        try:
-            self.proc.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            self.proc.wait()
-        self.reader.join(5)
-        return self.output
 
 
 def connect(port: int, **kwargs):
