@@ -20,8 +20,10 @@ from pathlib import Path
 
 import rerun as rr
 
+from probeless import wire
 from probeless.errors import ParamError, TransportError
 from probeless.runtime import Node, param
+from probeless.runtime.receiver import RawMessage
 from probeless.viz.blueprint import default_blueprint
 from probeless.viz.rerun_logger import RerunLogger
 
@@ -61,6 +63,7 @@ class RerunSink(Node):
     """Any input (one per topic, named by it) -> a Rerun recording: served, spawned and/or written."""
 
     INPUTS = {"*": None}
+    RAW_INPUTS = True   # decode only what is logged: not what max_hz drops, not types without a mapping
 
     @dataclass(frozen=True)
     class Params:
@@ -124,8 +127,11 @@ class RerunSink(Node):
             self.ctx.log.info("writing Rerun recording %s", p.rrd)
         return sinks
 
-    def on_input(self, name: str, msg) -> None:
+    def on_input(self, name: str, raw: RawMessage) -> None:
         topic = self.topics.get(name, name)
+        if not self.logger.handles(raw.type_name):
+            self.logger.skip(topic, f"{raw.type_name} has no Rerun mapping")
+            return
         if self.period:
             now = time.monotonic()
             if now - self.last.get(topic, -1e18) < self.period:
@@ -134,10 +140,10 @@ class RerunSink(Node):
             self.last[topic] = now
         with self.ctx.timed("log"):
             try:
-                self.logger.log(topic, msg)
+                self.logger.log(topic, wire.decode([raw.topic.encode(), *raw.frames])[2])
             except Exception as exc:  # a message the viewer cannot show must not stop the graph
                 if topic not in self.logger.reasons:
-                    self.ctx.log.warning("rerun: %s: cannot log %s: %s", topic, type(msg).__name__, exc)
+                    self.ctx.log.warning("rerun: %s: cannot log %s: %s", topic, raw.type_name.rpartition("/")[2], exc)
                 self.logger.skip(topic, f"error: {exc}")
 
     def close(self) -> None:

@@ -68,6 +68,11 @@ def _free(port: int) -> bool:
             return False
 
 
+def rate_hz(arrivals_ns: list[int], t0_ns: int, t1_ns: int) -> float:
+    """Messages per second that arrived in [t0, t1) (wall-clock arrival times [ns])."""
+    return sum(t0_ns <= t < t1_ns for t in arrivals_ns) / ((t1_ns - t0_ns) / 1e9)
+
+
 def start_launch(path: Path, *args: str, env: dict | None = None) -> subprocess.Popen:
     """``probeless launch PATH ARGS`` in the background, in its own process group, output piped."""
     return subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(path), *args], cwd=ROOT,

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from faults_common import free_ports
+from faults_common import free_ports, rate_hz
 from locations import TESTS
 
 FPS, BEFORE_S, STOP_S, AFTER_S = 30, 3.0, 10.0, 3.0
@@ -50,11 +50,6 @@ def _graph(tmp: Path, stopped_policy: str, tcp: bool) -> Path:
     return path
 
 
-def _rate(arrivals_ns: list[int], t0_ns: int, t1_ns: int) -> float:
-    n = sum(t0_ns <= t < t1_ns for t in arrivals_ns)
-    return n / ((t1_ns - t0_ns) / 1e9)
-
-
 def _run_stall(tmp: Path, stopped_policy: str, tcp: bool = False) -> dict:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(_graph(tmp, stopped_policy, tcp))],
@@ -81,8 +76,8 @@ def _run_stall(tmp: Path, stopped_policy: str, tcp: bool = False) -> dict:
     running = [t for _, t in json.loads((tmp / "running.json").read_text())["log"]["image"]]
     stopped = json.loads((tmp / "stopped.json").read_text())["log"]["image"]
     status = json.loads((tmp / "watch.json").read_text())["status"]["stopped"]["image"]
-    baseline = _rate(running, running[0] + int(0.5e9), t_stop)
-    during = _rate(running, t_stop + int(0.2e9), t_cont)
+    baseline = rate_hz(running, running[0] + int(0.5e9), t_stop)
+    during = rate_hz(running, t_stop + int(0.2e9), t_cont)
     _report(f"{stopped_policy}_{'tcp' if tcp else 'ipc'}", {
         "running_sink_hz_before": round(baseline, 2), "running_sink_hz_while_stopped": round(during, 2),
         "ratio": round(during / baseline, 3), "frames": FRAMES, "stopped_sink_received": len(stopped),

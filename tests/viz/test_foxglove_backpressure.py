@@ -22,6 +22,7 @@ from pathlib import Path
 
 import psutil
 import pytest
+from faults.faults_common import rate_hz
 from test_foxglove_bridge import Graph, advertisements, connect, message_data, subscribe
 
 FPS, BEFORE_S, STALL_S, AFTER_S = 30, 3.0, 10.0, 2.0
@@ -49,12 +50,6 @@ def _graph(tmp: Path) -> Path:
     params: {{out: {tmp}/watch.json}}
 """)
     return path
-
-
-def _rate(arrivals_ns: list[int], t0_ns: int, t1_ns: int) -> float:
-    """Messages per second that arrived in [t0, t1) (as in tests/faults/test_stalled_subscriber.py)."""
-    n = sum(t0_ns <= t < t1_ns for t in arrivals_ns)
-    return n / ((t1_ns - t0_ns) / 1e9)
 
 
 class RssSampler(threading.Thread):
@@ -116,8 +111,8 @@ def test_a_stalled_foxglove_viewer_never_slows_the_graph(tmp_path):
     assert graph.proc.returncode == 0, out
     arrivals = [t for _, t in json.loads((tmp_path / "sink.json").read_text())["log"]["image"]]
     t_stall, t_resume = viewer["t_stall"], viewer["t_resume"]
-    baseline = _rate(arrivals, arrivals[0] + int(0.5e9), t_stall)
-    during = _rate(arrivals, t_stall + int(0.2e9), t_resume)
+    baseline = rate_hz(arrivals, arrivals[0] + int(0.5e9), t_stall)
+    during = rate_hz(arrivals, t_stall + int(0.2e9), t_resume)
     bridge_in = json.loads((tmp_path / "watch.json").read_text())["status"]["fox"]["image"]
     sent = int(next(line for line in out.splitlines() if "src/image:" in line and " sent" in line)
                .split("src/image:")[1].split()[0])

@@ -32,6 +32,7 @@ from probeless.messages.mesh import PointCloud
 from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.nodes.viz.rerun_sink import RerunSink
 from probeless.runtime.params import load_params
+from probeless.runtime.receiver import RawMessage, peek_raw
 from probeless.runtime.testing import RecordingContext
 from probeless.viz.rerun_export import export_rerun
 
@@ -211,6 +212,11 @@ def _sink(tmp_path, **params):
     return ctx, node
 
 
+def _raw(topic: str, msg) -> RawMessage:
+    """A message as the sink receives it: wire frames, envelope peeked (the sink takes raw inputs)."""
+    return peek_raw(topic, wire.encode(topic, msg, "p", T0), T0)
+
+
 def test_rerun_sink_needs_a_sink(tmp_path):
     with pytest.raises(ParamError, match="key 'serve': no sink chosen: set serve: true, spawn: true or rrd"):
         _sink(tmp_path)                     # when the graph is loaded
@@ -225,8 +231,8 @@ def test_rerun_sink_max_hz_drops_per_topic_and_names_topics_from_the_plan(tmp_pa
     node.setup()
     img = np.zeros((4, 6, 3), np.uint8)
     for i in range(20):     # far faster than 0.5 Hz: only the first of each topic is logged
-        node.on_input("in0", Image(Header(T0 + i, "cam"), img, "rgb8"))
-        node.on_input("other/image", Image(Header(T0 + i, "cam"), img, "rgb8"))
+        node.on_input("in0", _raw("cam/image", Image(Header(T0 + i, "cam"), img, "rgb8")))
+        node.on_input("other/image", _raw("other/image", Image(Header(T0 + i, "cam"), img, "rgb8")))
     with caplog.at_level("INFO", logger="viewer"):
         node.close()
     assert "2 messages logged on 2 topics {cam/image: 1, other/image: 1}" in caplog.text
@@ -255,7 +261,7 @@ def test_rerun_sink_survives_a_message_it_cannot_log(tmp_path, monkeypatch, capl
     monkeypatch.setattr(node.logger, "log", lambda topic, msg: 1 / 0)
     with caplog.at_level("WARNING", logger="viewer"):
         for _ in range(3):
-            node.on_input("in0", Image(Header(T0, "cam"), np.zeros((2, 2, 3), np.uint8), "rgb8"))
+            node.on_input("in0", _raw("cam/image", Image(Header(T0, "cam"), np.zeros((2, 2, 3), np.uint8), "rgb8")))
     node.close()
     assert node.logger.skipped == {"cam/image": 3} and "division by zero" in node.logger.reasons["cam/image"]
     assert caplog.text.count("cam/image: cannot log Image") == 1
