@@ -6,9 +6,9 @@ Pure functions on plain lists, so each rule can be checked against hand-made ser
 - RSS growth [%]: median of the last window vs median of the first window after warm-up, each window
   ``WINDOW_FRAC`` of the samples after warm-up (at least ``MIN_WINDOW`` samples), so one outlier sample
   (a frame in flight, a read-ahead thread starting) moves neither end;
-- descriptor and thread growth: the same two window medians, as a difference, so a thread that lives
-  for one sample (a read-ahead worker, a loop restart) is not growth but one that stays open is; the peak
-  after warm-up is reported beside it;
+- descriptor and thread growth: the smallest count of the last window minus the smallest of the first, so a
+  thread that comes and goes (a read-ahead worker, a loop restart) is not growth however often it is caught,
+  but one that stays open is; the window medians' difference and the peak after warm-up are reported beside it;
 - the goal: RSS growth < ``GOAL_RSS_GROWTH_PCT`` and no descriptor or thread growth, per process and in total.
 """
 
@@ -41,14 +41,15 @@ def growth(t_s: list[float], values: list[float], cut_s: float) -> dict:
     if not after:
         nan = float("nan")
         return {"samples_after_warmup": 0, "at_warmup_end": nan, "first_window_median": nan,
-                "last_window_median": nan, "growth_pct": nan, "window_growth": nan,
+                "last_window_median": nan, "growth_pct": nan, "window_growth": nan, "floor_growth": nan,
                 "max_after_warmup_minus_start": nan}
     n = window_len(len(after))
     first, last = statistics.median(after[:n]), statistics.median(after[-n:])
     return {"samples_after_warmup": len(after), "at_warmup_end": after[0],
             "first_window_median": first, "last_window_median": last,
             "growth_pct": 100.0 * (last - first) / first if first else float("nan"),
-            "window_growth": last - first, "max_after_warmup_minus_start": max(after) - after[0]}
+            "window_growth": last - first, "floor_growth": min(after[-n:]) - min(after[:n]),
+            "max_after_warmup_minus_start": max(after) - after[0]}
 
 
 def summarize(series: dict[str, list], cut_s: float) -> dict:
@@ -58,10 +59,10 @@ def summarize(series: dict[str, list], cut_s: float) -> dict:
            "rss_mb_first_window": g["rss_mb"]["first_window_median"],
            "rss_mb_last_window": g["rss_mb"]["last_window_median"],
            "rss_growth_pct": g["rss_mb"]["growth_pct"],
-           "fds_at_warmup_end": g["fds"]["at_warmup_end"], "fd_growth": g["fds"]["window_growth"],
+           "fds_at_warmup_end": g["fds"]["at_warmup_end"], "fd_growth": g["fds"]["floor_growth"],
            "fd_peak_growth": g["fds"]["max_after_warmup_minus_start"],
            "threads_at_warmup_end": g["threads"]["at_warmup_end"],
-           "thread_growth": g["threads"]["window_growth"],
+           "thread_growth": g["threads"]["floor_growth"],
            "thread_peak_growth": g["threads"]["max_after_warmup_minus_start"],
            "samples_after_warmup": g["rss_mb"]["samples_after_warmup"]}
     out["failures"] = goal_failures(out)
