@@ -11,6 +11,7 @@ BUILTIN: dict[str, str] = {
     "summary_sink": "probeless.nodes.demo.summary:SummarySink",
     "bag_recorder": "probeless.nodes.bag.recorder:BagRecorder",
     "bag_player": "probeless.nodes.bag.player:BagPlayer",
+    "rosbag_player": "probeless.nodes.bag.rosbag_player:RosbagPlayer",
     "rgbd_dataset": "probeless.nodes.sensors.rgbd_dataset:RgbdDatasetPlayer",
     "fisheye_player": "probeless.nodes.sensors.fisheye_player:FisheyePlayer",
     "opencv_camera": "probeless.nodes.sensors.opencv_camera:OpenCvCamera",

@@ -37,6 +37,11 @@ def cmd_launch(ns: argparse.Namespace) -> int:
     from probeless.bag.run import prepare_graph
     from probeless.launch.launcher import Launcher
 
+    if ns.show_args:
+        from probeless.launch.args import describe_args
+
+        print(describe_args(ns.graph))
+        return 0
     graph, clock = prepare_graph(ns, parse_overrides(ns.args))
     for warning in graph.warnings:
         print(f"warning: {warning.format()}", file=sys.stderr)
@@ -77,7 +82,7 @@ def cmd_graph(ns: argparse.Namespace) -> int:
 
 
 def _add_bag_parsers(sub) -> None:
-    from probeless.bag.cli import add_export_parser, add_info_parser
+    from probeless.bag.cli import add_export_parser, add_import_parser, add_info_parser
 
     bag = sub.add_parser("bag", help="record, replay and inspect MCAP recordings")
     bags = bag.add_subparsers(dest="bag_command", required=True)
@@ -85,8 +90,9 @@ def _add_bag_parsers(sub) -> None:
     c.add_argument("topics", nargs="*", metavar="TOPIC", help="topics to record (default: all)")
     c.add_argument("-o", "--output", required=True, metavar="OUT.mcap")
     c.add_argument("--all", action="store_true", help="record every topic (the default without TOPICs)")
-    c.add_argument("--graph", metavar="G.yaml", help="launch this graph and record it")
-    c.add_argument("--graph-dir", help="run directory of the running graph to record (default: the newest)")
+    c.add_argument("--graph", "--graph-dir", dest="graph", metavar="RUN_ID|G.yaml",
+                   help="a running graph to record (its run id from `probeless runs`, or run directory), or a "
+                        "graph file to launch and record; default: the only running graph (with several, it asks)")
     c.add_argument("--duration", type=float, help="stop after S seconds")
     c.add_argument("--arg", dest="args", action="append", default=[], metavar="name:=value",
                    help="graph argument (with --graph)")
@@ -99,6 +105,7 @@ def _add_bag_parsers(sub) -> None:
     c.set_defaults(func=cmd_bag)
     add_info_parser(bags).set_defaults(func=cmd_bag)
     add_export_parser(bags, {"rerun": _export_rerun}).set_defaults(func=cmd_bag)
+    add_import_parser(bags)  # `bag import`: ROS bags (probeless[ros]); sets its own func
 
 
 def _export_rerun(*args, **kwargs):
@@ -123,12 +130,17 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--duration", type=float, help="stop the graph cleanly S seconds after it started (all nodes ready)")
     c.add_argument("--only", metavar="HOST", help="start only the nodes of this host (name or ADDRESS:PORT)")
     c.add_argument("--ready-timeout", type=float, default=60.0, help="seconds to wait for all nodes to be ready")
+    c.add_argument("--show-args", action="store_true", help="list the graph's arguments (default, range, doc); "
+                                                           "start nothing")
     g = c.add_argument_group("record and replay")
     g.add_argument("--record", metavar="OUT.mcap", help="record every topic (or --record-topics) to an MCAP file")
     g.add_argument("--record-topics", dest="topics", nargs="+", metavar="TOPIC", help="topics to record")
     g.add_argument("--replay", metavar="IN.mcap", help="recorded topics stand in for the nodes that produced them")
     g.add_argument("--replace", metavar="ID1,ID2", help="nodes to replace by the replay (default: every node "
-                                                        "whose outputs are all in the recording)")
+                                                        "whose outputs are all in the recording, except nodes "
+                                                        "whose type differs from the recorded one and what they feed)")
+    g.add_argument("--keep", metavar="ID1,ID2", help="nodes that run live although the recording has their outputs "
+                                                     "(and so do the nodes they feed)")
     add_replay_options(g, prefix="replay-")
     add_record_options(g)
     c.set_defaults(func=cmd_launch)
@@ -146,14 +158,21 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--golden", required=True, metavar="OUT.mcap", help="expected outputs (written if missing)")
     c.add_argument("--replace", metavar="ID1,ID2", help="nodes the recording stands in for (default: every node "
                                                         "whose outputs are all in the recording)")
+    c.add_argument("--keep", metavar="ID1,ID2", help="nodes that run live although the recording has their outputs")
     c.add_argument("--tolerance", type=float, default=1e-6, help="absolute tolerance for float values")
     c.add_argument("--rtol", type=float, default=0.0, help="relative tolerance for float values")
     c.add_argument("--update-golden", action="store_true", help="overwrite the golden recording")
     c.set_defaults(func=cmd_test)
 
+    from probeless.launch.node_types import add_nodes_parser
+
+    add_nodes_parser(sub)
+
     from probeless.topics import add_topic_parser
+    from probeless.topics.cli import add_node_parsers
 
     add_topic_parser(sub)
+    add_node_parsers(sub)  # node list|info, param get|set, runs
 
     from probeless.scene.cli import add_scene_parser
 

@@ -5,14 +5,25 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 
+from probeless.errors import NodeError
 from probeless.messages.sensor import Image
 from probeless.runtime import Node, param
+from probeless.runtime.params import writable_dir_problem
 
 MAX_LATENCY_MS = 86_400_000.0  # a "latency" beyond a day means the stamps are not on this clock (scene time)
+
+
+def summary_line(path: Any, summary: dict) -> str:
+    """``wrote PATH: 90 frames, 30.0 Hz, latency p50 3.01 ms`` (n/a where a figure is unknown)."""
+    def fmt(value: Any, spec: str) -> str:
+        return "n/a" if value is None else format(value, spec)
+    return (f"wrote {path}: {summary['frames']} frames, {fmt(summary['rate_hz'], '.1f')} Hz, "
+            f"latency p50 {fmt(summary['latency_ms_p50'], '.2f')} ms")
 
 
 def summarize(stamps_ns: list[int], latencies_ms: list[float], seqs: list[int]) -> dict:
@@ -41,7 +52,9 @@ class SummarySink(Node):
 
     @dataclass(frozen=True)
     class Params:
-        out_dir: str = param("out/demo", doc="directory for summary.json and last_frame.png")
+        out_dir: str = param("out/demo", check=writable_dir_problem,
+                             doc="directory for summary.json and last_frame.png (created; relative to the "
+                                 "working folder)")
 
     def setup(self) -> None:
         self.stamps: list[int] = []
@@ -57,10 +70,13 @@ class SummarySink(Node):
 
     def close(self) -> None:
         out = Path(self.params.out_dir)
-        out.mkdir(parents=True, exist_ok=True)
         summary = summarize(self.stamps, self.latencies, self.seqs)
-        (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-        if self.last is not None:
-            cv2.imwrite(str(out / "last_frame.png"), cv2.cvtColor(self.last, cv2.COLOR_RGB2BGR))
-        self.ctx.log.info("wrote %s: %d frames, %.1f Hz, latency p50 %s ms", out / "summary.json",
-                          summary["frames"], summary["rate_hz"], summary["latency_ms_p50"])
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        except OSError as exc:  # became unwritable since `check`: one line, not a traceback
+            raise NodeError(f"cannot write {out / 'summary.json'}: {exc.strerror or exc}") from None
+        if self.last is not None and not cv2.imwrite(str(out / "last_frame.png"),
+                                                     cv2.cvtColor(self.last, cv2.COLOR_RGB2BGR)):
+            raise NodeError(f"cannot write {out / 'last_frame.png'}")
+        self.ctx.log.info("%s", summary_line(out / "summary.json", summary))

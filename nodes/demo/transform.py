@@ -33,9 +33,9 @@ class ImageTransform(Node):
 
     @dataclass(frozen=True)
     class Params:
-        operation: str = param("blur", choices=OPERATIONS, doc="OpenCV operation to apply")
+        operation: str = param("blur", choices=OPERATIONS, dynamic=True, doc="OpenCV operation to apply")
         ksize: int = param(5, min=1, max=99, check=lambda k: None if k % 2 else f"ksize must be odd, got {k}",
-                           doc="Gaussian kernel size for blur [px], odd")
+                           dynamic=True, doc="Gaussian kernel size for blur [px], odd")
 
     def on_input(self, name: str, msg: Image) -> None:
         with self.ctx.timed(f"op:{self.params.operation}"):

@@ -117,6 +117,8 @@ class HdrExpander(Node):
                           "%d left LDR, max radiance %.3g", self.expansions, r["method"], r["points"],
                           "-" if r["alpha"] is None else f"{r['alpha']:.4g}", r["points_overexposed"],
                           r["points_expanded"], r["points_filled"], r["points_left_ldr"], r["radiance_max"])
+        for w in r.get("warnings", []):
+            self.ctx.log.warning("hdr_expander: expansion %d: %s", self.expansions, w)
         ldr = np.clip(linear_colors(cloud.colors), 0.0, 1.0).astype(np.float32)
         self.ctx.publish("cloud", HdrPointCloud(cloud.header, cloud.points,
                                                 np.ascontiguousarray(result.radiance, np.float32),

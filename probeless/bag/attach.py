@@ -48,15 +48,22 @@ def record_running_graph(path: str, topics: list[str] | None, params: dict[str, 
         runtime.stop_requested = True
 
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    timer = threading.Timer(duration, stop) if duration else None
-    if timer:
-        timer.start()
+    done = threading.Event()
+    if duration:  # counted from the moment the recorder is subscribed, not from the start of its set-up
+        threading.Thread(target=_stop_after, args=(runtime, duration, done, stop), daemon=True).start()
     print(f"recording {len(chosen)} topic(s) of {graph.describe()} to {path}; Ctrl-C to stop", file=sys.stderr)
     try:
         return runtime.run()
     finally:
-        if timer:
-            timer.cancel()
+        done.set()
         for s, h in old.items():
             signal.signal(s, h)
         shutil.rmtree(run_dir, ignore_errors=True)
+
+
+def _stop_after(runtime: NodeRuntime, duration: float, done: threading.Event, stop: Any) -> None:
+    """Stop the recorder ``duration`` seconds after it started recording."""
+    while runtime.state != "running" and not done.wait(0.02):
+        pass
+    if not done.wait(duration):
+        stop()

@@ -16,7 +16,7 @@ from typing import Any, BinaryIO
 from mcap.opcode import Opcode
 from mcap.records import Channel, ChunkIndex, Metadata, MetadataIndex, Schema, Statistics
 
-from probeless.bag.records import FOOTER_SIZE, MAGIC, PREFIX, RecordError, parse, split
+from probeless.bag.records import FOOTER_SIZE, MAGIC, PREFIX, RecordError, chunk_records, parse, split
 
 
 @dataclass(frozen=True)
@@ -132,4 +132,58 @@ def _from_summary(f: BinaryIO, size: int, summary_start: int, records: list[Any]
                                 ci.uncompressed_size))
     if stats is not None and stats.message_count:
         out.time_range = (stats.message_start_time, stats.message_end_time)
+    if _incomplete(out, stats):
+        problem = _records_from_chunks(f, size, out, stats)
+        if problem:
+            return None, problem
     return out, ""
+
+
+def _missing(out: Layout, stats: Statistics | None) -> set[int]:
+    """Channel ids the chunk indexes or the statistics point to that the layout has no channel for."""
+    wanted = set(stats.channel_message_counts) if stats is not None else set()
+    for b in out.blocks:
+        wanted |= b.channels or set()
+    return wanted - set(out.channels)
+
+
+def _incomplete(out: Layout, stats: Statistics | None) -> bool:
+    """Whether channels or schemas the messages need may be only inside the chunks: a channel id
+    indexed but not in the summary, a channel's schema missing, or chunks that do not say which
+    channels they hold while the summary lists none (or fewer than its statistics count)."""
+    if _missing(out, stats):
+        return True
+    if any(ch.schema_id and ch.schema_id not in out.schemas for ch in out.channels.values()):
+        return True
+    unindexed = any(b.channels is None for b in out.blocks)
+    if not unindexed:
+        return False
+    return stats is None or not stats.channel_message_counts or stats.channel_count > len(out.channels)
+
+
+def _records_from_chunks(f: BinaryIO, size: int, out: Layout, stats: Statistics | None) -> str:
+    """Register the schema and channel records written inside the chunks (other writers may keep
+    them out of the summary), reading only as many chunks as needed; "" or why the chunks cannot be read."""
+    need_all = any(b.channels is None for b in out.blocks)
+    for b in out.blocks:
+        missing = _missing(out, stats)
+        schemas_ok = all(not ch.schema_id or ch.schema_id in out.schemas for ch in out.channels.values())
+        if not need_all and not missing and schemas_ok:
+            break
+        if not need_all and b.channels is not None and not (b.channels & missing) and schemas_ok:
+            continue
+        rec = read_at(f, size, b.offset)
+        if rec is None or rec[0] != Opcode.CHUNK:
+            return f"the summary indexes a chunk at byte {b.offset}, where no chunk is"
+        try:
+            for r in chunk_records(parse(*rec, b.offset), b.offset):
+                if isinstance(r, (Schema, Channel)) and _new(out, r):
+                    out.register(r)
+        except RecordError as exc:
+            return f"the chunk at byte {b.offset} that holds channel records is damaged ({exc.why})"
+    return ""
+
+
+def _new(out: Layout, r: Any) -> bool:
+    """True when ``r`` (a schema or channel) is not registered yet; the summary's records win."""
+    return r.id not in (out.schemas if isinstance(r, Schema) else out.channels)

@@ -132,11 +132,16 @@ class BagReader:
             self._stats = index_stats(self._f, self._chunks, self._channels, self._schemas)
         if self._stats is None:  # another writer or no message index: read every block once
             self._stats = {}
+            found = Layout()
             for k in range(len(self._chunks)):
                 try:
-                    take(Layout(), self._block_records(k), self._stats)
+                    take(found, self._block_records(k), self._stats)
                 except BagError as exc:
                     self.problems.append(f"{exc}: its messages are not counted")
+            for sid, schema in found.schemas.items():
+                self._schemas.setdefault(sid, schema)
+            for cid, ch in found.channels.items():
+                self._channels.setdefault(cid, ch)
         return self._stats
 
     def _type_of(self, ch: Channel) -> tuple[str, int]:
@@ -154,6 +159,11 @@ class BagReader:
         """Every topic with its type, message count, log time range and payload bytes, by name."""
         out: dict[str, TopicInfo] = {}
         stats = self._channel_stats()
+        orphans = {cid: s[0] for cid, s in stats.items() if s[0] and cid not in self._channels}
+        if orphans:
+            what = ", ".join(f"{n} on channel id {cid}" for cid, n in sorted(orphans.items()))
+            raise BagError(f"{self.path}: cannot count the messages per topic: {what}, whose channel record is "
+                           "in neither the summary nor the chunks (the file is damaged or cut short)")
         for cid, ch in sorted(self._channels.items()):
             count, first, last, size = stats.get(cid, [0, None, None, 0])
             type_name, version = self._type_of(ch)

@@ -71,16 +71,42 @@ def recorded_types(bag: str) -> dict[str, str]:
     return {t: info.type_name for t, info in topics.items()}
 
 
+def recorded_nodes(bag: str) -> dict[str, str]:
+    """node id -> ``node:`` type of the graph that made a recording (its stored plan); {} when it has none."""
+    import json
+
+    from probeless.bag.info import GRAPH
+
+    with BagReader(bag) as reader:
+        meta = reader.metadata().get(GRAPH) or {}
+    try:
+        nodes = json.loads(meta.get("plan") or "{}").get("nodes") or {}
+        return {str(nid): str(n["node"]) for nid, n in nodes.items() if isinstance(n, dict) and n.get("node")}
+    except (ValueError, AttributeError, TypeError):
+        return {}
+
+
+def replay_into(graph: Graph, bag: str, ns: argparse.Namespace, params: dict, tag: str) -> list[str]:
+    """Swap the recorded nodes for a player (``--replace``/``--keep`` of ``ns``); prints, before anything
+    starts, what comes from the recording and what runs live (and why)."""
+    replace = ns.replace.split(",") if getattr(ns, "replace", None) else None
+    keep = ns.keep.split(",") if getattr(ns, "keep", None) else None
+    notes: list[str] = []
+    replaced = add_player(graph, bag, recorded_types(bag), replace=replace,
+                          remap=parse_remaps(tuple(getattr(ns, "remap", ()) or ())), params=params,
+                          recorded_nodes=recorded_nodes(bag), keep=keep, notes=notes)
+    print(f"[{tag}] replaying {bag}:", file=sys.stderr)
+    for line in notes:
+        print(f"[{tag}]   {line}", file=sys.stderr)
+    return replaced
+
+
 def prepare_graph(ns: argparse.Namespace, overrides: dict) -> tuple[Graph, str | None]:
     """Load a graph and apply ``--replay``/``--record``; returns (graph, clock node or None)."""
     graph = load_checked(ns.graph, overrides)
     clock = None
     if getattr(ns, "replay", None):
-        remap = parse_remaps(tuple(ns.remap))
-        replace = ns.replace.split(",") if ns.replace else None
-        replaced = add_player(graph, ns.replay, recorded_types(ns.replay), replace=replace, remap=remap,
-                              params=_player_params(ns))
-        print(f"[launch] replaying {ns.replay} in place of: {', '.join(replaced)}", file=sys.stderr)
+        replay_into(graph, ns.replay, ns, _player_params(ns), "launch")
         clock = PLAYER_ID
     if getattr(ns, "record", None):
         _refuse_overwrite(ns.record, ns.force)
@@ -90,14 +116,70 @@ def prepare_graph(ns: argparse.Namespace, overrides: dict) -> tuple[Graph, str |
 
 def cmd_record(ns: argparse.Namespace, overrides: dict) -> int:
     _refuse_overwrite(ns.output, ns.force)
-    if ns.graph:
+    _no_stdin()
+    if ns.graph and not _names_run(ns.graph):
+        _note_running(ns.graph)
         graph = load_checked(ns.graph, overrides)
         add_recorder(graph, ns.output, topics=None if ns.all else ns.topics or None, params=_recorder_params(ns))
-        return Launcher(graph, duration=ns.duration).run()
-    from probeless.bag.attach import record_running_graph
+        code = Launcher(graph, duration=ns.duration).run()
+    else:
+        from probeless.bag.attach import record_running_graph
 
-    return record_running_graph(ns.output, None if ns.all else ns.topics, _recorder_params(ns),
-                                graph_dir=ns.graph_dir, duration=ns.duration)
+        code = record_running_graph(ns.output, None if ns.all else ns.topics, _recorder_params(ns),
+                                    graph_dir=ns.graph, duration=ns.duration)
+    report_written(ns.output)
+    return code
+
+
+def _names_run(spec: str) -> bool:
+    """Whether ``bag record --graph SPEC`` names a running graph (a run id or run directory) to attach to,
+    rather than a graph file to launch."""
+    from probeless.runtime.runs import runs_base
+
+    as_dir = Path(spec) if "/" in spec else runs_base() / spec
+    return (as_dir / "graph.json").is_file() or not Path(spec).is_file()
+
+
+def _note_running(path: str) -> None:
+    from probeless.runtime.runs import resolve_runs
+
+    for g in resolve_runs(path):
+        print(f"note: {path} is already running as {g.run_id}; this launches another instance "
+              f"(to record the running one: --graph {g.run_id})", file=sys.stderr)
+
+
+def _no_stdin() -> None:
+    """A recorder never reads the terminal: detach stdin, so a background ``bag record`` that inherited the
+    shell's stdin behaves exactly like one started with ``</dev/null``."""
+    import os
+
+    try:
+        fd = os.open(os.devnull, os.O_RDONLY)
+        os.dup2(fd, 0)
+        os.close(fd)
+    except OSError:
+        pass
+
+
+def report_written(path: str, out=None) -> int:
+    """Print ``N messages written to FILE(s)`` (counted in the written files) and return N."""
+    from probeless.bag.writer import recording_paths
+
+    out = out or sys.stdout
+    try:
+        files = recording_paths(path)
+    except BagError:
+        print(f"0 messages written (no recording was created at {path})", file=out)
+        return 0
+    count = 0
+    for f in files:
+        try:
+            with BagReader(f) as reader:
+                count += sum(t.count for t in reader.topics().values())
+        except BagError as exc:
+            print(f"warning: {exc}", file=sys.stderr)
+    print(f"{count} messages written to {', '.join(map(str, files))}", file=out)
+    return count
 
 
 def cmd_play(ns: argparse.Namespace) -> int:
@@ -119,10 +201,7 @@ def cmd_play(ns: argparse.Namespace) -> int:
 def cmd_test(ns: argparse.Namespace, overrides: dict) -> int:
     """Lockstep replay of ``--bag`` through the graph, outputs recorded and compared to ``--golden``."""
     graph = load_checked(ns.graph, overrides)
-    replace = ns.replace.split(",") if ns.replace else None
-    replaced = add_player(graph, ns.bag, recorded_types(ns.bag), replace=replace,
-                          params={"lockstep": True, "rate": 0.0})
-    print(f"[test] replaying {ns.bag} in place of: {', '.join(replaced)}", file=sys.stderr)
+    replay_into(graph, ns.bag, ns, {"lockstep": True, "rate": 0.0}, "test")
     with tempfile.TemporaryDirectory(prefix="probeless-test-") as tmp:
         out = str(Path(tmp) / "outputs.mcap")
         topics = add_recorder(graph, out, diagnostics=False, skip={PLAYER_ID})

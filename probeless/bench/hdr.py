@@ -22,7 +22,9 @@ Quality gates, checked in the same run:
 * ``patchmatch_quality``: the exhaustive nearest-neighbour field's mean SSD divided by PatchMatch's, on
   two disjoint 128² crops of a synthetic texture, translation only, for ``rgb`` and ``lum`` (goal >= 0.9;
   the exact field is the reference);
-* ``poisson``: :func:`poisson_check`, the fill against nearest-neighbour copying (goal: at most half its RMS).
+* ``poisson``: :func:`poisson_check`, the fill against nearest-neighbour copying (goal: at most half its RMS);
+* ``banterle_pc``: :func:`banterle_pc_check`, BANTERLE-PC's kNN transfer timed against the old point-order blur,
+  and its order independence (a gate).
 
 ``patchmatch_1024_s`` (not with ``--quick``): :func:`patchmatch_timing`, PatchMatch alone on a 1024² view.
 
@@ -98,8 +100,8 @@ def rms(a: np.ndarray, b: np.ndarray) -> float:
 
 def patchmatch_quality() -> dict:
     """Exhaustive field's mean SSD / PatchMatch's, translation only, two disjoint 128² crops, per mode."""
-    from probeless.hdr.expand import ITERATIONS, PATCH
     from probeless.hdr.patchmatch import exhaustive_nnf, patchmatch, synthetic_texture
+    from probeless.hdr.pmatch_transfer import ITERATIONS, PATCH
 
     tex = synthetic_texture(160, 288, seed=11)
     src, tgt = tex[:128, :128], tex[16:144, 152:280]
@@ -163,6 +165,32 @@ def patchmatch_timing(repeat: int) -> dict:
     return out
 
 
+def banterle_pc_check(points: np.ndarray, ldr: np.ndarray, repeat: int, seed: int = 0) -> dict:
+    """BANTERLE-PC's transfer on the whole cloud (peak 10): its kNN expand map (``scipy.spatial.cKDTree``,
+    :func:`probeless.hdr.transfer.knn_expand_map`) against the issue's old transfer, the image operator
+    (``cv2.GaussianBlur`` of the clipped mask, :func:`probeless.pano.itmo.banterle_expand_map`) on the points as a
+    1 x N image, i.e. blurred along the point order. Best of ``repeat`` each; ``banterle_pc_speedup`` = old / new.
+    Quality gate: the kNN result does not depend on the point order (a shuffled cloud gives the same values)."""
+    from probeless.hdr.transfer import expand_points
+    from probeless.pano.itmo import banterle_expand_map
+
+    def best(fn):
+        times = []
+        for _ in range(max(1, repeat)):
+            t0 = time.perf_counter()
+            out = fn()
+            times.append(time.perf_counter() - t0)
+        return min(times), out
+
+    new_s, a = best(lambda: expand_points(ldr, "banterle", max_lum=10.0, points=points))
+    old_s, _ = best(lambda: banterle_expand_map(ldr[None], max_lum=10.0, l_white=10.0))
+    perm = np.random.default_rng(seed).permutation(len(points))
+    b = expand_points(ldr[perm], "banterle", max_lum=10.0, points=points[perm])
+    return {"points": int(len(points)), "knn_s": new_s, "point_order_blur_s": old_s,
+            "banterle_pc_speedup": old_s / new_s, "reference": "cv2.GaussianBlur along the point order (old code)",
+            "order_independent": bool(np.allclose(b, a[perm], rtol=1e-5, atol=1e-6))}
+
+
 def measure(ns) -> dict:
     from probeless.hdr.io import read_hdr_ply
     from probeless.hdr.synthetic import synthetic_case
@@ -200,6 +228,8 @@ def measure(ns) -> dict:
     pmq = patchmatch_quality()
     log("Poisson fill against nearest-neighbour copying")
     poisson = poisson_check(case.points, truth)
+    log("BANTERLE-PC transfer: kNN expand map against the point-order blur")
+    banterle = banterle_pc_check(case.points, case.ldr_colors, repeat)
     timing = None
     if not quick:
         log("PatchMatch 1024^2 against 1024x512")
@@ -216,10 +246,11 @@ def measure(ns) -> dict:
         "alpha": report["alpha"],
         "goal_end_to_end_s": GOAL_S, "goal_met": bool(best_s <= GOAL_S and len(case.points) >= 800_000),
         "cloud_rms_overexposed": {"ldr": rms_ldr, "expanded": rms_hdr},
-        "quality_gate_passed": bool(rms_hdr < rms_ldr),
+        "quality_gate_passed": bool(rms_hdr < rms_ldr and banterle["order_independent"]),
         "patchmatch_quality": pmq, "patchmatch_goal": PATCHMATCH_GOAL,
         "patchmatch_goal_met": bool(min(pmq.values()) >= PATCHMATCH_GOAL),
-        "patchmatch_1024_s": timing, "poisson": poisson,
+        "patchmatch_1024_s": timing, "poisson": poisson, "banterle_pc": banterle,
+        "warnings": report.get("warnings", []),
     }
 
 
@@ -237,6 +268,10 @@ def print_table(r: dict) -> None:
     if r["patchmatch_1024_s"]:
         print("PatchMatch 1024^2 vs 1024x512 (rotation + scale): "
               + ", ".join(f"{k} {v['seconds']:.1f} s" for k, v in r["patchmatch_1024_s"].items()))
+    b = r["banterle_pc"]
+    print(f"BANTERLE-PC transfer at {b['points']} points: kNN {b['knn_s']:.2f} s, point-order blur "
+          f"{b['point_order_blur_s']:.2f} s (speedup {b['banterle_pc_speedup']:.1f}x; order independent: "
+          f"{b['order_independent']})")
     for pattern in ("random", "overexposed"):
         q = r["poisson"][pattern]
         print(f"Poisson fill, 30 % removed ({pattern} blobs): RMS {q['fill_rms']:.3g} against nearest copy "

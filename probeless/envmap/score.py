@@ -4,7 +4,10 @@
 Units. ``est`` and ``truth_ldr`` are camera LDR: sRGB-encoded fisheye output 0..1 (uint8 codes / 255), i.e.
 ``linear_to_srgb(clip(radiance * exposure, 0, 1))``. ``truth_hdr`` is the rig's linear radiance (``gt/envmap``),
 unclipped. ``est`` is decoded back to radiance as ``srgb_to_linear(est) / exposure``: its clipped texels stay
-clipped, which is the point of the HDR scores (they show what an LDR map loses).
+clipped, which is the point of the HDR scores (they show what an LDR map loses). A linear (HDR) map
+(``Cubemap.linear``, ``linear=True``) is in the camera's *linear* units (radiance x exposure, 1 = LDR white,
+unclipped): its radiance is ``est / exposure`` as it is, and the camera-LDR scores see it as the camera would,
+``linear_to_srgb(clip(est, 0, 1))``; so one set of scores compares LDR and HDR maps.
 
 Texel sets. ``observed`` (texels of ``est`` that show something a camera saw) gives ``coverage``; ``common``
 (texels both compared methods observed; default ``observed``) is where the ``*_common`` scores, ``log_rmse_hdr``
@@ -22,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from probeless.color import luminance, srgb_to_linear
+from probeless.color import linear_to_srgb, luminance, srgb_to_linear
 from probeless.envmap import metrics as M
 from probeless.envmap.sh import irradiance_from_sh, project_cubemap
 from probeless.errors import ProbelessError
@@ -99,7 +102,8 @@ def _psnr(err2: np.ndarray, w: np.ndarray, peak: float = 1.0) -> float:
     return float("inf") if mse == 0 else float(10.0 * np.log10(peak * peak / mse))
 
 
-def score_envmap(est, truth_ldr, truth_hdr, *, exposure: float, observed=None, common=None) -> dict[str, float]:
+def score_envmap(est, truth_ldr, truth_hdr, *, exposure: float, observed=None, common=None,
+                 linear: bool = False) -> dict[str, float]:
     """Scores of one estimated map against the truth (module doc for units and texel sets).
 
     Returns ``psnr_common`` [dB] and ``ssim_common`` (camera LDR, peak 1; the SSIM maps' mean over common
@@ -110,7 +114,8 @@ def score_envmap(est, truth_ldr, truth_hdr, *, exposure: float, observed=None, c
     units over common texels, peak V(10000)), ``sh_diffuse_error`` (:func:`sh_diffuse_error` of est's radiance
     vs ``truth_hdr``) and ``sh_diffuse_error_ldr`` (vs ``truth_ldr`` linearised: the fair one for LDR maps).
     ``exposure``: the fisheye's linear multiplier (camera linear = radiance x exposure), a number or per channel
-    (3,) (exposure x white-balance gains). A score over an empty set of texels is NaN.
+    (3,) (exposure x white-balance gains). ``linear``: ``est`` is a linear HDR map in camera linear units (module
+    doc). A score over an empty set of texels is NaN.
     """
     t_ldr, t_hdr = _faces(truth_ldr, "truth_ldr"), np.asarray(truth_hdr, np.float64)
     size = t_ldr.shape[1]
@@ -121,12 +126,19 @@ def score_envmap(est, truth_ldr, truth_hdr, *, exposure: float, observed=None, c
         raise ProbelessError(f"score_envmap: exposure must be a positive number (or 3, per channel), got {exposure!r}")
     t_hdr = t_hdr[..., :3]
     e = _faces(est, "est")
-    e = np.clip(e if e.shape[1] == size else box_down(e, size, "est"), 0.0, 1.0)
+    e = e if e.shape[1] == size else box_down(e, size, "est")
+    if linear:
+        if not np.isfinite(e).all():
+            raise ProbelessError("score_envmap: the linear map has NaN or infinite texels")
+        e_rad = np.maximum(e, 0.0) / exposure
+        e = linear_to_srgb(np.clip(e, 0.0, 1.0))
+    else:
+        e = np.clip(e, 0.0, 1.0)
+        e_rad = srgb_to_linear(e) / exposure
     obs = _mask(observed, size, "observed")
     com = obs if common is None else _mask(common, size, "common")
     omega = cube_solid_angles(size)
     err2 = ((e - t_ldr) ** 2).mean(axis=-1)
-    e_rad = srgb_to_linear(e) / exposure
     floor = LOG_FLOOR / float(exposure.mean())
     log_err2 = (np.log10(np.maximum(luminance(e_rad), floor)) - np.log10(np.maximum(luminance(t_hdr), floor))) ** 2
     nits = PU21_WHITE_NITS * exposure

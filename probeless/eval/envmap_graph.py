@@ -9,6 +9,8 @@ swap (``envmap_node:=cubemap_renderer`` for ``ours``, ``baseline_envmap`` for ``
 topic is recorded and every map is scored against the recording's truth for the same fisheye frame
 (``rig/gt/envmap/<id>``, linear HDR, and ``rig/gt/envmap_ldr/<id>``, the fisheye's LDR units at that moment) with
 :func:`probeless.envmap.score.score_envmap`, on the texels both methods observed (``Cubemap.observed``).
+Linear (HDR) maps (``lighting:=hdr``, which ``photo:=FILE`` selects) are scored with the same scores, as linear
+(``score_envmap(..., linear=True)``): unclipped for the HDR ones, as the camera would clip them for the LDR ones.
 
 A scene file is rendered first (cached under ``out/cache/eval_envmap`` by the scene file's content, the
 duration and the truth size).
@@ -45,11 +47,13 @@ class Truth:
 
 @dataclass
 class GraphRun:
-    """One method's maps: (object, stamp) -> (faces camera LDR 0..1, observed mask or None)."""
+    """One method's maps: (object, stamp) -> (faces, observed mask or None); faces are camera LDR 0..1, or with
+    ``linear`` camera linear units (radiance x exposure, 1 = LDR white, unclipped: ``lighting:=hdr``)."""
 
     method: str
     maps: dict[tuple[str, int], tuple[np.ndarray, np.ndarray | None]]
     log: Path
+    linear: bool = False
 
 
 def render_recording(scene: str, duration: float | None, envmap_size: int, show_progress: bool,
@@ -88,25 +92,28 @@ def run_graph(graph: str, recording: Path, objects: str, method: str, out_dir: P
            f"objects:={objects}", f"envmap_node:={GRAPH_METHODS[method]}", f"out_dir:={run_dir}", *args,
            "--record", str(maps), "--record-topics", "envmap/envmaps", *record, "--force"]
     _run(cmd, run_dir / "launch.log", show_progress)
-    return GraphRun(method, read_maps(maps), run_dir / "launch.log")
+    found, linear = read_maps(maps)
+    return GraphRun(method, found, run_dir / "launch.log", linear)
 
 
-def read_maps(path: Path) -> dict[tuple[str, int], tuple[np.ndarray, np.ndarray | None]]:
-    """(object, stamp) -> (camera LDR faces 0..1 float32, observed (6, S, S) or None) of a recorded envmaps topic."""
+def read_maps(path: Path) -> tuple[dict[tuple[str, int], tuple[np.ndarray, np.ndarray | None]], bool]:
+    """((object, stamp) -> (faces float32, observed (6, S, S) or None), linear) of a recorded envmaps topic: faces
+    camera LDR 0..1, or camera linear units when the maps are linear (HDR); a run's maps are all one or the other."""
     from probeless.bag.reader import BagReader
 
-    out = {}
+    out, kinds = {}, set()
     with BagReader(path) as reader:
         for m in reader.messages(["envmap/envmaps"]):
             cube = reader.decode(m)
-            if cube.linear:
-                raise ProbelessError(f"{path}: linear (HDR) maps are not scored here (lighting:=ldr only)")
+            kinds.add(bool(cube.linear))
             faces = cube.faces[..., :3]
             faces = faces.astype(np.float32) / 255.0 if faces.dtype == np.uint8 else faces.astype(np.float32)
             out[cube.object_id, cube.header.stamp_ns] = (faces, cube.observed if len(cube.observed) else None)
     if not out:
         raise ProbelessError(f"{path}: the graph published no environment map (see the launch log next to it)")
-    return out
+    if len(kinds) > 1:
+        raise ProbelessError(f"{path}: the run published both linear (HDR) and LDR maps on envmap/envmaps")
+    return out, kinds.pop()
 
 
 def read_truth(recording: Path) -> Truth:
@@ -168,8 +175,8 @@ def score_runs(runs: dict[str, GraphRun], truth: Truth) -> dict[str, dict[str, d
             else None
         for method, run in runs.items():
             faces, observed = run.maps[oid, stamp]
-            scores = score_envmap(faces, truth.ldr[oid, stamp], truth.hdr[oid, stamp],
-                                  exposure=truth.exposure[stamp], observed=_down(observed, size), common=common)
+            scores = score_envmap(faces, truth.ldr[oid, stamp], truth.hdr[oid, stamp], exposure=truth.exposure[stamp],
+                                  observed=_down(observed, size), common=common, linear=run.linear)
             entry = out[method].setdefault(oid, {"series": {k: [] for k in SCORES}, "times_s": []})
             for k in SCORES:
                 entry["series"][k].append(scores[k])
@@ -210,7 +217,7 @@ def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: flo
     scores = score_runs(runs, read_truth(recording))
     result: dict[str, Any] = {"mode": "graph", "graph": graph, "scene": scene, "recording": str(recording),
                               "graph_args": graph_args, "units": "camera LDR (PSNR peak 1); HDR scores vs gt/envmap",
-                              "methods": scores}
+                              "linear_maps": {m: r.linear for m, r in runs.items()}, "methods": scores}
     if "ours" in scores and "baseline" in scores:
         result["ours_minus_baseline"] = {
             o: {k: scores["ours"][o][k] - scores["baseline"][o][k] for k in ("psnr_common", "psnr_all")}

@@ -35,7 +35,9 @@ def graph_table(result: dict[str, Any]) -> str:
     from probeless.envmap.score import SCORES
 
     cols = [k for k in SCORES if k not in ("psnr_all",)] + ["psnr_all"]
-    lines = [f"mode: graph ({result['graph']}, lockstep on {result['recording']})",
+    linear = [m for m, lin in result.get("linear_maps", {}).items() if lin]
+    hdr = f"; linear (HDR) maps: {', '.join(linear)}" if linear else ""
+    lines = [f"mode: graph ({result['graph']}, lockstep on {result['recording']}{hdr})",
              f"{'method':<10}{'object':<10}" + "".join(f"{k:>21}" for k in cols)]
     for method, objects in result["methods"].items():
         for oid, e in objects.items():

@@ -63,6 +63,8 @@ EVALUATIONS: dict[str, Evaluation] = {
                                                           "LDR vs HDR"),
     "pbgi": Evaluation("probeless.eval.pbgi", "PBGI and environment-map renderings of a sphere vs Mitsuba 3, one "
                                               "bounce (paper 001, Figure 14)"),
+    "ibl": Evaluation("probeless.eval.ibl", "every ibl_compositor material on a sphere under HDR panoramas and a "
+                                            "room's cubemap vs Mitsuba 3 (issue 27)"),
 }
 
 # help of a command group that only holds old spellings (created by add_old_spellings)

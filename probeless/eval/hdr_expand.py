@@ -78,7 +78,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     [--json] [--figure OUT.png] [--pictures DIR]``."""
     from probeless.eval.hdr_pbgi import BSH_TC, MICRO_SIZES, VARIANTS
 
-    p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene YAML files (launch/scenes/*.yaml)")
+    p.add_argument("scenes", nargs="+", metavar="SCENE",
+                   help="scene YAML files (launch/scenes/*.yaml) or HDR panoramas (.hdr/.exr) painted on a box room; "
+                        "PATH@TARGET aims the photo (see load_case)")
     p.add_argument("--methods", nargs="+", metavar="METHOD",
                    help="ldr (baseline) and expand_cloud methods (default: all)")
     p.add_argument("--views", type=int, default=3, help="expansion views per cloud (default 3)")
@@ -107,6 +109,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tc", type=float, default=BSH_TC,
                    help=f"PBGI hierarchy's colour threshold (default {BSH_TC:g}: the same tree for every cloud; "
                         "the paper's 0.01 prunes by colour)")
+    p.add_argument("--photo-pose", choices=("oracle", "estimate"), default="oracle",
+                   help="pmatch: give the photo's true pose (oracle, labelled in the JSON) or let the method "
+                        "estimate it from its correspondences (default oracle)")
+    p.add_argument("--known-exposure", type=float, default=None, metavar="ALPHA",
+                   help="give every method this exposure (cloud = ALPHA x photo) instead of estimating it")
     p.add_argument("--pictures", metavar="DIR",
                    help="write DIR/<scene>.png: each method's GGX and diffuse renderings next to the truth")
     add_common_options(p, figure=("--figure", "bar chart of the rendering RMS per method and scene"))
@@ -172,6 +179,49 @@ def rms(a: np.ndarray, b: np.ndarray) -> float | None:
 
 # --- one scene ------------------------------------------------------------------------------------
 
+ALPHA_GOAL = 0.10       # |alpha / true alpha - 1|
+EXPANDED_GOAL = 0.90    # fraction of the over-exposed points the photo sees that are expanded
+OPERATORS = ("landis", "banterle", "landis-pc", "banterle-pc")
+
+
+def photo_oracle(case):
+    """``(PhotoPose, sees (N,) bool)``: the synthetic photo's true pinhole and the points it shows (the cloud splatted
+    from it, id buffer): the scene's ground truth, independent of any method."""
+    from probeless.hdr.geometry import PhotoPose, photo_visibility
+    from probeless.hdr.splat import point_spacing
+
+    h, w = case.photo_hdr.shape[:2]
+    fov = float(np.degrees(2 * np.arctan(w / 2 / case.photo_K[0, 0])))
+    pose = PhotoPose(np.asarray(case.photo_K), np.asarray(case.photo_world_from_camera), 0, 0, fov, "given")
+    view = photo_visibility(case.points, case.ldr_colors, point_spacing(case.points), pose, (w, h))
+    sees = np.zeros(len(case.points), bool)
+    sees[view.point_id[view.point_id >= 0]] = True
+    return pose, sees
+
+
+def scene_goals(rows: dict) -> dict | None:
+    """Issue 27's goals on one scene for the best PatchMatch method (lowest GGX RMS): it beats ``ldr`` and every
+    operator on over-exposed cloud RMS and on GGX RMS; its alpha within 10 %; >= 90 % of the over-exposed points the
+    photo sees expanded. None without a PatchMatch method in the run."""
+    pm = [m for m in rows if m.startswith("pmatch")]
+    if not pm:
+        return None
+    best = min(pm, key=lambda m: rows[m]["ggx_rms"])
+    b = rows[best]
+    rivals = [m for m in rows if m == BASELINE or m in OPERATORS]
+
+    def beats(key):
+        mine = b[key] if b[key] is not None else 0.0
+        return all(mine < (rows[m][key] if rows[m][key] is not None else 0.0) or mine == 0.0 for m in rivals)
+    frac = b["expanded_in_photo_fraction"]
+    goals = {"best_pmatch": best, "beats_on_overexposed_rms": beats("cloud_rms_overexposed"),
+             "beats_on_ggx": beats("ggx_rms"),
+             "alpha_within_10pct": b["alpha_error"] is not None and abs(b["alpha_error"]) <= ALPHA_GOAL,
+             "expanded_in_photo_90pct": frac is None or frac >= EXPANDED_GOAL}
+    goals["all_met"] = all(v for k, v in goals.items() if k != "best_pmatch")
+    return goals
+
+
 class CubemapProbes:
     """The cubemap path: each radiance of the cloud ``points`` splatted into a cubemap at ``centre`` (``face`` px)
     lights the spheres of :class:`ProbeRenderer`; ``covered``: the texels the last cubemap's points cover (the
@@ -217,22 +267,59 @@ def make_probes(ctx, case, radius: float, cameras, ns):
     return CubemapProbes(*args, ns.face)
 
 
+def split_target(spec: str) -> tuple[str, str | None]:
+    """``PATH[@TARGET]`` -> (PATH, TARGET or None)."""
+    path, _, target = str(spec).partition("@")
+    return path, (target or None)
+
+
+def load_case(spec: str, ns):
+    """``(SyntheticCase, object radius [m], [two points the sphere is seen from])`` of one ``SCENE`` argument: a scene
+    YAML (:func:`probeless.hdr.synthetic.synthetic_case`) or an HDR panorama (.hdr / .exr) painted on a box room
+    (:func:`probeless.hdr.pano_room.pano_room_case`); ``@TARGET`` after either sets its photo's aim (YAML:
+    ``overexposed``, ``look-at`` or ``x,y,z``; panorama: ``overexposed``, ``brightest`` or ``down``)."""
+    from probeless.errors import HdrError
+
+    path, target = split_target(spec)
+    if Path(path).suffix.lower() in (".hdr", ".exr"):
+        from probeless.hdr.pano_room import OBJECT_HEIGHT, ROOM, pano_room_case
+
+        case = pano_room_case(path, photo_target=target or "overexposed", photo_exposure=ns.photo_exposure)
+        c = np.array([ROOM[0] / 2, ROOM[1] / 2, OBJECT_HEIGHT])
+        return case, 0.12, [c + np.array([1.5, 0.5, 0.3]), c + np.array([-1.5, -0.6, 0.3])]
+    from probeless.hdr.synthetic import synthetic_case
+    from probeless.scene.parse import load_scene
+
+    aim = target or ns.photo_target
+    if aim not in ("overexposed", "look-at"):
+        try:
+            aim = [float(v) for v in aim.split(",")]
+        except ValueError:
+            raise HdrError(f"{spec}: photo target must be overexposed, look-at or x,y,z") from None
+    scene = load_scene(path)
+    case = synthetic_case(path, frames=ns.frames, scale=ns.scale, voxel=ns.voxel, exposure=ns.exposure,
+                          photo_exposure=ns.photo_exposure, photo_target=aim)
+    if target:
+        import dataclasses
+
+        case = dataclasses.replace(case, scene=f"{case.scene}@{target}")
+    return case, float(scene.virtual_objects[0].radius), [scene.keyframes[0].position, scene.keyframes[-1].position]
+
+
 def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = None) -> dict:
     """The scene's result; ``images`` (when given) receives {"truth" | method: renderings} for ``--pictures``."""
     from probeless.gl.context import create_context
     from probeless.hdr.expand import expand_cloud
-    from probeless.hdr.synthetic import synthetic_case
     from probeless.hdr.transfer import overexposed
-    from probeless.scene.parse import load_scene
 
-    scene = load_scene(scene_path)
-    case = synthetic_case(scene_path, frames=ns.frames, scale=ns.scale, voxel=ns.voxel, exposure=ns.exposure,
-                          photo_exposure=ns.photo_exposure, photo_target=ns.photo_target)
-    radius = float(scene.virtual_objects[0].radius)
-    towards = [scene.keyframes[0].position, scene.keyframes[-1].position]
+    case, radius, towards = load_case(scene_path, ns)
     cameras = viewpoints(case.object_position, radius, towards, ns.image)
     truth = case.truth_cloud_units.astype(np.float64)
     over = overexposed(case.ldr_colors)
+    true_alpha = case.exposure / case.photo_exposure
+    oracle = photo_oracle(case)
+    in_photo = over & oracle[1]
+    pose = oracle[0] if getattr(ns, "photo_pose", "oracle") == "oracle" else None
     ctx = create_context()
     probes = None
     try:
@@ -245,24 +332,36 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
         rows = {}
         for m in methods:
             if m == BASELINE:
-                radiance, report = case.ldr_colors, {}
+                radiance, report, expanded = case.ldr_colors, {}, None
             else:
                 res = expand_cloud(case.points, case.ldr_colors, case.photo_hdr, method=m, views=ns.views,
-                                   size=ns.size, robust=not getattr(ns, "no_robust", False))
+                                   size=ns.size, robust=not getattr(ns, "no_robust", False), photo_pose=pose,
+                                   exposure=getattr(ns, "known_exposure", None))
                 radiance, report = res.radiance, res.report
+                expanded = res.expanded
             est = probes.render(radiance)
             if images is not None:
                 images[m] = est
+            alpha = report.get("alpha")
             rows[m] = {"cloud_rms": rms(radiance, truth), "cloud_rms_overexposed": rms(radiance[over], truth[over]),
                        **luminance_ratios(radiance[over], truth[over]), **compare_renderings(est, ref),
-                       "alpha": report.get("alpha"), "points_expanded": report.get("points_expanded"),
-                       "points_filled": report.get("points_filled"), "points_rejected": report.get("points_rejected")}
+                       "alpha": alpha, "alpha_error": None if alpha is None else alpha / true_alpha - 1.0,
+                       "exposure_method": report.get("exposure_method"),
+                       "points_expanded": report.get("points_expanded"),
+                       "points_overexposed_visible": report.get("points_overexposed_visible"),
+                       "expanded_in_photo_fraction": (None if m == BASELINE or not in_photo.any() else
+                                                      float(expanded[in_photo].mean())),
+                       "points_filled": report.get("points_filled"), "points_rejected": report.get("points_rejected"),
+                       "warnings": report.get("warnings", [])}
             tick()
     finally:
         if probes is not None:
             probes.release()
         ctx.release()
     return {"scene": case.scene, "points": int(len(case.points)), "points_overexposed": int(over.sum()),
+            "points_overexposed_in_photo": int(in_photo.sum()), "true_alpha": true_alpha,
+            "photo_pose": "oracle" if pose is not None else "estimated",
+            "goals": scene_goals(rows),
             "true_radiance_max": float(case.true_radiance.max()), "exposure": case.exposure,
             "photo_exposure": case.photo_exposure, "object_position": case.object_position.tolist(),
             "object_radius": radius, **info,
@@ -273,7 +372,11 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
 
 # --- output ---------------------------------------------------------------------------------------
 
-COLUMNS = ("cloud_rms", "cloud_rms_overexposed", "diffuse_rms", "diffuse_ssim", "ggx_rms", "ggx_ssim")
+COLUMNS = ("cloud_rms", "cloud_rms_overexposed", "diffuse_rms", "diffuse_ssim", "ggx_rms", "ggx_ssim", "alpha_error",
+           "expanded_in_photo_fraction")
+_HEAD = {"cloud_rms": "cloud", "cloud_rms_overexposed": "cloud over", "diffuse_rms": "diffuse",
+         "diffuse_ssim": "diff ssim", "ggx_rms": "ggx", "ggx_ssim": "ggx ssim", "alpha_error": "alpha err",
+         "expanded_in_photo_fraction": "exp in photo"}
 
 
 def format_table(result: dict) -> str:
@@ -281,12 +384,18 @@ def format_table(result: dict) -> str:
              f"(roughness {result['roughness']}), two viewpoints each (mean shown); RMS in cloud units"]
     for s in result["scenes"]:
         holes = f", cubemap holes {100 * s['cubemap_hole_fraction']:.1f}%" if "cubemap_hole_fraction" in s else ""
-        lines.append(f"{s['scene']}: {s['points']} points, {s['points_overexposed']} over-exposed, "
-                     f"true max {s['true_radiance_max']:.3g}{holes}")
-        lines.append(f"  {'method':<12}" + "".join(f"{c:>23}" for c in COLUMNS))
+        lines.append(f"{s['scene']}: {s['points']} points, {s['points_overexposed']} over-exposed "
+                     f"({s.get('points_overexposed_in_photo', '-')} in the photo), true max "
+                     f"{s['true_radiance_max']:.3g}, true alpha {s.get('true_alpha', float('nan')):.4g}, photo pose "
+                     f"{s.get('photo_pose', '-')}{holes}")
+        lines.append(f"  {'method':<12}" + "".join(f"{_HEAD[c]:>13}" for c in COLUMNS))
         for m, row in s["methods"].items():
-            cells = "".join(f"{'-' if row[c] is None else format(row[c], '.4g'):>23}" for c in COLUMNS)
+            cells = "".join(f"{'-' if row.get(c) is None else format(row[c], '.4g'):>13}" for c in COLUMNS)
             lines.append(f"  {m:<12}{cells}")
+        if s.get("goals"):
+            g = s["goals"]
+            lines.append("  goals (" + g["best_pmatch"] + "): " + ", ".join(
+                f"{k} {'yes' if v else 'NO'}" for k, v in g.items() if k != "best_pmatch"))
     return "\n".join(lines)
 
 

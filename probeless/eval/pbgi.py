@@ -10,7 +10,13 @@ error of each method, raw and with the reference's Monte Carlo noise removed (``
 and for ``red_wall`` the same over the sphere's pixels facing the panel (``near_wall``), where colour bleeding is,
 also over R, G, B instead of luminance (``near_wall_rgb``: luminance weighs red by 0.21 only). Near-wall errors are
 raw (the reference's noise is in them).
-``plain`` is seen from the ``front`` view, ``red_wall`` from the ``wall`` view (:func:`object_camera`).
+``plain`` is seen from the ``front`` view, the others from the ``wall`` view (:func:`object_camera`).
+The decal rooms (:mod:`probeless.pbgi.room_decals`: ``red_wall`` with a poster on the panel, a rug under the sphere
+and the ceiling lamp as decals, coplanar in ``decals``, 0.5, 1 and 5 mm in front of their surfaces in
+``decals_0.5mm`` ...) also report ``vs_coplanar``: the relative RMS luminance difference of the PBGI image from
+the PBGI image of the coplanar room (same material; the goal: within 1 %) and the ratio of their mean luminances.
+``pbgi_le_envmap`` per room: whether PBGI's error is at most the envmap mode's in every row (corrected and near the
+panel).
 Mitsuba renders are cached under ``out/cache/mitsuba/`` (``--no-cache`` renders again).
 """
 
@@ -24,10 +30,11 @@ import numpy as np
 
 from probeless.eval.harness import add_common_options, emit
 
-ROOMS = ("plain", "red_wall")
+ROOMS = ("plain", "red_wall", "decals", "decals_0.5mm", "decals_1mm", "decals_5mm")
 ROUGHNESS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 SHOWN = ("pbgi", "envmap", "ibl", "pbgi_no_is")
 VIEW = {"plain": "front", "red_wall": "wall"}  # red_wall: the side of the sphere the panel lights
+VIEW.update({r: "wall" for r in ROOMS if r.startswith("decals")})
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -60,36 +67,71 @@ def _floats(text: str, what: str) -> list[float]:
         raise PbgiError(f"{what}: expected comma-separated numbers, got {text!r}") from None
 
 
-def evaluate_room(name: str, brdfs: list, ns, tick, images: dict | None) -> dict:
-    from probeless.pbgi.compare import Comparison, material_key
+def _comparison(name: str, ns):
+    from probeless.pbgi.compare import Comparison
 
-    comp = Comparison(name, size=ns.size, view=VIEW[name], micro=ns.micro, variant=ns.variant, spp=ns.spp,
+    return Comparison(name, size=ns.size, view=VIEW[name], micro=ns.micro, variant=ns.variant, spp=ns.spp,
                       supersample=ns.supersample, cache=not ns.no_cache)
+
+
+def coplanar_images(brdfs: list, ns) -> dict:
+    """{material key: (PBGI image, mask)} of the coplanar ``decals`` room (what the offset rooms should match)."""
+    from probeless.pbgi.compare import material_key
+
+    comp = _comparison("decals", ns)
     try:
-        panel = comp.room.panels[0] if comp.room.panels else None
+        return {material_key(b): comp.pbgi(b) for b in brdfs}
+    finally:
+        comp.release()
+
+
+def _vs_coplanar(image, mask, coplanar) -> dict:
+    from probeless.color import luminance
+    from probeless.pbgi.compare import relative_rms
+
+    ref, ref_mask = coplanar
+    both = mask & ref_mask
+    return {"rms": relative_rms(image, ref, both),
+            "mean_ratio": float(luminance(image[both]).mean() / luminance(ref[both]).mean())}
+
+
+def evaluate_room(name: str, brdfs: list, ns, tick, images: dict | None, coplanar: dict | None = None) -> dict:
+    from probeless.pbgi.compare import material_key
+
+    comp = _comparison(name, ns)
+    try:
+        target = comp.panel_target()
         rows = {}
         for brdf in brdfs:
             r = comp.render(brdf)
             row = {"errors": r.errors, "corrected": r.corrected, "noise": r.noise, "pixels": int(r.mask.sum()),
                    "seconds": r.seconds}
-            if panel is not None:
+            if target is not None:
                 from probeless.pbgi.compare import relative_rms
 
-                target = panel.origin + 0.5 * (panel.edge_u + panel.edge_v)
                 near = comp.facing(r.mask, target)
                 row["near_wall"] = {m: relative_rms(r.images[m], r.images["reference"], near)
                                     for m in r.errors}
                 row["near_wall_rgb"] = {m: relative_rms(r.images[m], r.images["reference"], near, rgb=True)
                                         for m in r.errors}
                 row["near_wall_pixels"] = int(near.sum())
+            if coplanar is not None:
+                row["vs_coplanar"] = _vs_coplanar(r.images["pbgi"], r.mask, coplanar[material_key(brdf)])
             rows[material_key(brdf)] = row
             if images is not None:
                 images[material_key(brdf)] = (r.images, r.mask)
             tick()
         return {"room": name, "points": comp.n_points, "bsh_nodes": int(len(comp.bsh.nodes)),
-                "far_field_holes": comp.far_holes, "materials": rows}
+                "far_field_holes": comp.far_holes, "materials": rows, "pbgi_le_envmap": _pbgi_wins(rows)}
     finally:
         comp.release()
+
+
+def _pbgi_wins(rows: dict) -> bool:
+    """PBGI's error is at most the envmap mode's in every row: corrected, and near the panel where measured."""
+    ok = all(row["corrected"]["pbgi"] <= row["corrected"]["envmap"] for row in rows.values())
+    return ok and all(row[k]["pbgi"] <= row[k]["envmap"] for row in rows.values()
+                      for k in ("near_wall", "near_wall_rgb") if k in row)
 
 
 def format_table(result: dict) -> str:
@@ -98,15 +140,20 @@ def format_table(result: dict) -> str:
     for room in result["rooms"]:
         lines.append(f"{room['room']}: {room['points']} points, {room['bsh_nodes']} BSH nodes")
         shown = [m for m in SHOWN if any(m in row["errors"] for row in room["materials"].values())]
+        has_near = any("near_wall" in row for row in room["materials"].values())
+        has_step = any("vs_coplanar" in row for row in room["materials"].values())
         lines.append(f"  {'material':<12}{'noise':>8}" + "".join(f"{m:>18}" for m in shown)
-                     + ("  near wall: " + " ".join(f"{m:>7}" for m in shown[:3]) if room["room"] == "red_wall"
-                        else ""))
+                     + ("  near wall: " + " ".join(f"{m:>7}" for m in shown[:3]) if has_near else "")
+                     + ("   vs coplanar: rms  mean" if has_step else ""))
         for key, row in room["materials"].items():
             cells = "".join(f"{row['corrected'][m]:>9.3f} ({row['errors'][m]:.3f})" if m in row["errors"]
                             else f"{'-':>18}" for m in shown)
             near = ("  " + " " * 11 + " ".join(f"{row['near_wall'][m]:>7.3f}" for m in shown[:3])
                     if "near_wall" in row else "")
-            lines.append(f"  {key:<12}{row['noise']:>8.3f}{cells}{near}")
+            step = (f"  {row['vs_coplanar']['rms']:>8.4f} {row['vs_coplanar']['mean_ratio']:>6.4f}"
+                    if "vs_coplanar" in row else "")
+            lines.append(f"  {key:<12}{row['noise']:>8.3f}{cells}{near}{step}")
+        lines.append(f"  PBGI <= envmap in every row: {'yes' if room['pbgi_le_envmap'] else 'NO'}")
     return "\n".join(lines)
 
 
@@ -185,10 +232,11 @@ def run(ns: argparse.Namespace) -> int:
     brdfs = ([] if ns.no_lambert else [Brdf("lambert", (0.8, 0.8, 0.8))]) + [Brdf("ggx", (1, 1, 1), r) for r in rough]
     out_dir = Path(ns.pictures) if ns.pictures else None
     results = []
+    coplanar = coplanar_images(brdfs, ns) if any(r.startswith("decals_") for r in rooms) else None
     with progress(len(rooms) * len(brdfs), "pbgi vs mitsuba", enabled=not ns.no_progress) as tick:
         for name in rooms:
             images = {} if out_dir is not None else None
-            res = evaluate_room(name, brdfs, ns, tick, images)
+            res = evaluate_room(name, brdfs, ns, tick, images, coplanar if name.startswith("decals_") else None)
             if out_dir is not None:
                 res["pictures"] = str(out_dir / f"{name}.png")
                 pictures(name, images, Path(res["pictures"]),

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -60,6 +61,30 @@ def read_view_positions(path) -> np.ndarray:
     if out.ndim != 2 or out.shape[1] != 6 or len(out) == 0:
         raise HdrError(f"{p}: expected one view per row of 3 or 6 numbers")
     return out.reshape(-1, 2, 3)
+
+
+def read_photo_pose(path, photo_shape):
+    """The :class:`~probeless.hdr.geometry.PhotoPose` of a ``--photo-pose`` JSON file: ``{"K": 3 x 3,
+    "world_from_camera": 4 x 4}`` (OpenCV pinhole: x right, y down, z forward; [m] in the cloud's frame), as
+    ``probeless hdr photo`` writes it beside the photo."""
+    from probeless.hdr.geometry import PhotoPose
+
+    p = Path(path)
+    if not p.is_file():
+        raise HdrError(f"{p}: photo pose file not found")
+    try:
+        d = json.loads(p.read_text())
+        K = np.asarray(d["K"], np.float64)
+        pose = np.asarray(d["world_from_camera"], np.float64)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise HdrError(f"{p}: cannot read the photo pose ({exc!r}); expected {{'K': 3x3, 'world_from_camera': "
+                       f"4x4}}") from None
+    if K.shape != (3, 3) or pose.shape != (4, 4) or not (np.isfinite(K).all() and np.isfinite(pose).all()):
+        raise HdrError(f"{p}: K must be 3 x 3 and world_from_camera 4 x 4, finite; got {K.shape}, {pose.shape}")
+    if abs(np.linalg.det(pose[:3, :3]) - 1.0) > 1e-3 or K[0, 0] <= 0:
+        raise HdrError(f"{p}: world_from_camera must be a rigid transform and K[0][0] > 0")
+    w = photo_shape[1]
+    return PhotoPose(K, pose, 0, 0, float(np.degrees(2 * np.arctan(w / 2 / K[0, 0]))), "given")
 
 
 def tonemap8(radiance: np.ndarray) -> np.ndarray:
@@ -157,10 +182,14 @@ def cmd_expand(ns: argparse.Namespace) -> int:
         rows = read_view_positions(ns.view_positions)
         rows[:, 1] = np.where(np.isnan(rows[:, 1]), points.astype(np.float64).mean(axis=0), rows[:, 1])
         views = rows
+    pose = read_photo_pose(ns.photo_pose, photo.shape) if ns.photo_pose else None
     with StageBars(not ns.no_progress) as bars:
         result = expand_cloud(points, ldr, photo, method=ns.method, views=views, transfer=ns.transfer,
                               normals=normals, size=ns.size, ssd_threshold=ns.ssd_threshold,
-                              robust=not ns.no_robust, progress=bars)
+                              robust=not ns.no_robust, exposure=ns.exposure, max_lum=ns.max_lum, photo_pose=pose,
+                              progress=bars)
+    for w in result.report["warnings"]:
+        print(f"warning: {w}", file=sys.stderr)
     t0 = time.perf_counter()
     write_hdr_ply(out, points, result.radiance, normals)
     timings = {"read": read_ms, **result.report["timings_ms"], "write": (time.perf_counter() - t0) * 1e3}
@@ -173,9 +202,12 @@ def cmd_expand(ns: argparse.Namespace) -> int:
         print_json(report)
     else:
         r = report
-        print(f"{out}: {r['points']} points, method {r['method']} ({r['transfer']}), alpha "
-              f"{r['alpha']:.4g}, {len(r['views'])} view(s)")
-        print(f"  over-exposed {r['points_overexposed']}: expanded {r['points_expanded']}, filled "
+        alpha = "not used" if r["alpha"] is None else f"{r['alpha']:.4g} ({r['exposure_method']})"
+        peak = f", peak {r['max_lum']:.4g} ({r['max_lum_source']})" if "max_lum" in r else ""
+        print(f"{out}: {r['points']} points, method {r['method']} ({r['transfer']}), alpha {alpha}{peak}, "
+              f"{len(r['views'])} view(s)")
+        print(f"  over-exposed {r['points_overexposed']} ({r['points_overexposed_visible']} in a view): expanded "
+              f"{r['points_expanded']}, filled "
               f"{r['points_filled']}, left LDR {r['points_left_ldr']} ({r['unanchored_components']} unanchored "
               f"component(s)); max radiance {r['radiance_max']:.4g}")
         if not r["points_overexposed"]:
@@ -204,8 +236,11 @@ def cmd_photo(ns: argparse.Namespace) -> int:
         write_hdr_image(out, case.photo_hdr)
     except ProbelessError as exc:
         raise HdrError(str(exc)) from None
+    pose_file = out.with_suffix(".pose.json")
+    pose_file.write_text(json.dumps({"K": case.photo_K.tolist(),
+                                     "world_from_camera": case.photo_world_from_camera.tolist()}) + "\n")
     print(f"{out}: {w} x {h} HDR photo of {case.scene} from {np.round(case.photo_position, 3).tolist()}, "
-          f"max {float(case.photo_hdr.max()):.4g} (unknown exposure {ns.exposure:g})")
+          f"max {float(case.photo_hdr.max()):.4g} (unknown exposure {ns.exposure:g}); its pose: {pose_file}")
     return 0
 
 
@@ -230,6 +265,14 @@ def add_hdr_parser(sub) -> None:
     c.add_argument("--ssd-threshold", type=float, default=1.0, help="PatchMatch SSD rejection t_h (default 1)")
     c.add_argument("--no-robust", action="store_true",
                    help="pmatch: keep values that disagree with their clipped cluster (the paper's raw field)")
+    c.add_argument("--exposure", type=float, metavar="ALPHA",
+                   help="the known exposure (cloud = ALPHA x photo); default: from geometry when the photo's pose "
+                        "is known or found, else Eq. 1's histogram match")
+    c.add_argument("--photo-pose", metavar="FILE",
+                   help="the photo's pinhole pose, JSON {K, world_from_camera} (as 'hdr photo' writes it); default: "
+                        "estimated from the PatchMatch correspondences when they allow it")
+    c.add_argument("--max-lum", type=float, metavar="L",
+                   help="operators: the peak [cloud units] LDR white maps to (default: the photo's peak x alpha)")
     c.add_argument("--figures", metavar="DIR", help="write PNGs of the views and before/after panoramas")
     c.add_argument("--json", action="store_true", help="print the report as one JSON object")
     c.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")

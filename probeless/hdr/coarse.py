@@ -129,19 +129,20 @@ def fill_ring(radiance: np.ndarray, ldr_linear: np.ndarray, texmap: TexelMap, se
 
 def expand_atlas(atlas: np.ndarray, texmap: TexelMap, photo_hdr, *, observed: np.ndarray | None = None,
                  method: str = "pmatch-rgb", views=None, transfer: str = "rgb", size: int = 256,
-                 ssd_threshold: float = 1.0, progress=None) -> HdrAtlas:
+                 ssd_threshold: float = 1.0, progress=None, **options) -> HdrAtlas:
     """The HDR atlas of a coarse model's camera-LDR ``atlas`` from one HDR photo (module docstring).
 
     ``atlas``, ``observed``, ``texmap``: as :func:`texel_cloud`; ``photo_hdr`` and the keyword arguments are
-    :func:`~probeless.hdr.expand.expand_cloud`'s (the texel normals are passed along for view placement).
-    HdrError when no texel was observed.
+    :func:`~probeless.hdr.expand.expand_cloud`'s (the texel normals are passed along for view placement;
+    ``options``: its ``exposure``, ``max_lum``, ``photo_pose``, ``robust``). HdrError when no texel was observed.
     """
     cloud = texel_cloud(atlas, texmap, observed)
     if len(cloud.points) == 0:
         raise HdrError("expand_atlas: no observed texel on the coarse model's surfaces (atlas alpha all 0?)")
     seen = observed_mask(atlas, observed, "expand_atlas")
     result = expand_cloud(cloud.points, cloud.colors, photo_hdr, method=method, views=views, transfer=transfer,
-                          normals=cloud.normals, size=size, ssd_threshold=ssd_threshold, progress=progress)
+                          normals=cloud.normals, size=size, ssd_threshold=ssd_threshold, progress=progress,
+                          **options)
     ldr = atlas_linear(atlas, "expand_atlas")
     radiance = ldr.copy()
     radiance[cloud.rows, cloud.cols] = result.radiance
@@ -171,9 +172,9 @@ def dense_linear(colors: np.ndarray, delta=(0.0, 0.0, 0.0)) -> np.ndarray:
 
 def expand_dense(points: np.ndarray, colors: np.ndarray, photo_hdr, *, delta=(0.0, 0.0, 0.0),
                  method: str = "pmatch-rgb", views=None, transfer: str = "rgb", size: int = 256,
-                 ssd_threshold: float = 1.0, progress=None) -> ExpansionResult:
+                 ssd_threshold: float = 1.0, progress=None, **options) -> ExpansionResult:
     """HDR radiance of the dense model's points (:func:`~probeless.hdr.expand.expand_cloud` on
     :func:`dense_linear` colours): draw ``result.radiance`` with ``set_dense(..., linear=True)`` and no Δ."""
     ldr = dense_linear(colors, delta)
     return expand_cloud(points, ldr, photo_hdr, method=method, views=views, transfer=transfer, size=size,
-                        ssd_threshold=ssd_threshold, progress=progress)
+                        ssd_threshold=ssd_threshold, progress=progress, **options)

@@ -11,7 +11,8 @@ Each point's ``true_radiance`` is the unclipped linear radiance of its pixel; po
 radiance), which keeps N manageable (~20-150k). All frames use one lighting state: the lights as they are
 at the end of the trajectory (``t = scene.duration``; the light of ``light_switch`` is then on).
 
-``ldr_colors = clip(exposure * true_radiance, 0, 1)`` (Eq. 1, float32, computed exactly so). The HDR
+``ldr_colors = clip(exposure * true_radiance, 0, 1)`` (Eq. 1, float32, computed exactly so; a scene with sensor
+effects gets its RGB-D camera's white balance, noise and 8-bit response instead, :func:`scanner_ldr`). The HDR
 photo is a linear pinhole render (:meth:`SceneRenderer.render_pinhole`, ``photo_fov_deg`` horizontal,
 ``photo_size`` (width, height)) of the part of the room the trajectory looks at: from the mean of the
 keyframe positions plus ``photo_offset`` (default 0.35 m up, so on no RGB-D frame's or expansion view's
@@ -40,7 +41,8 @@ class SyntheticCase:
     radiance units]; ``ldr_colors`` (N, 3) float32 = clip(exposure * true_radiance, 0, 1); ``photo_hdr``
     (H, W, 3) float32 linear radiance times ``photo_exposure``; ``object_position`` (3,) [m] (the
     scene's first virtual object); ``exposure``, ``photo_exposure``, ``photo_position`` and the ``scene``
-    name. Cloud units (:mod:`probeless.hdr.expand`) are ``exposure * true_radiance``."""
+    name; ``photo_K`` / ``photo_world_from_camera``: the photo's true pinhole (an oracle). Cloud units
+    (:mod:`probeless.hdr.expand`) are ``exposure * true_radiance``."""
 
     points: np.ndarray
     true_radiance: np.ndarray
@@ -51,6 +53,8 @@ class SyntheticCase:
     photo_exposure: float
     photo_position: np.ndarray
     scene: str
+    photo_K: np.ndarray | None = None
+    photo_world_from_camera: np.ndarray | None = None
 
     @property
     def truth_cloud_units(self) -> np.ndarray:
@@ -68,6 +72,25 @@ def voxel_merge(points: np.ndarray, values: np.ndarray, voxel: float) -> tuple[n
     np.add.at(p, inverse, points)
     np.add.at(v, inverse, values)
     return p / counts[:, None], v / counts[:, None]
+
+
+def scanner_ldr(truth: np.ndarray, exposure: float, effects=None) -> np.ndarray:
+    """(N, 3) float32 linear LDR colours of the cloud: ``clip(exposure * truth, 0, 1)`` exactly (Eq. 1) for an
+    ideal scene; for a scene with ``sensor_effects`` (the ``*_realistic`` ones) its RGB-D camera's white-balance
+    gains, Poisson-Gaussian noise (seeded) and response curve to 8-bit codes, which the pipeline reads back as
+    sRGB (so a gamma-2.2 response is decoded slightly wrong, as a real scan would be)."""
+    from probeless.color import from_srgb8
+    from probeless.scene.sensor_effects import encode, poisson_gaussian, response_lut
+
+    x = np.float32(exposure) * np.asarray(truth, np.float32)
+    cam = None if effects is None else effects.rgbd
+    if cam is None:
+        return np.clip(x, 0.0, 1.0).astype(np.float32)
+    if cam.wb_gains is not None:
+        x = x * np.asarray(cam.wb_gains, np.float32)
+    if cam.noise is not None:
+        x = poisson_gaussian(x, cam.noise, np.random.default_rng(effects.seed))
+    return from_srgb8(encode(np.clip(x, 0.0, 1.0), response_lut(cam.gamma))).astype(np.float32)
 
 
 def synthetic_case(scene_path: str | Path, *, frames: int = 8, scale: float = 0.25, voxel: float = 0.02,
@@ -117,7 +140,7 @@ def synthetic_case(scene_path: str | Path, *, frames: int = 8, scale: float = 0.
             rad.append(radiance[ok].astype(np.float64))
         points, radiance = voxel_merge(np.concatenate(pts), np.concatenate(rad), voxel)
         truth = np.clip(radiance, 0.0, None).astype(np.float32)
-        ldr = np.clip(np.float32(exposure) * truth, 0.0, 1.0).astype(np.float32)
+        ldr = scanner_ldr(truth, exposure, scene.sensor_effects)
         target = np.mean([k.look_at for k in scene.keyframes], axis=0)
         over = overexposed(ldr)
         if aim is not None:
@@ -130,4 +153,4 @@ def synthetic_case(scene_path: str | Path, *, frames: int = 8, scale: float = 0.
         rig.release()
     photo = (np.clip(photo, 0.0, None) * np.float32(photo_exposure)).astype(np.float32)
     return SyntheticCase(points.astype(np.float32), truth, ldr, photo, obj, float(exposure), float(photo_exposure),
-                         photo_pos, scene.name)
+                         photo_pos, scene.name, photo_K, photo_pose)

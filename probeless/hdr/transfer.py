@@ -47,33 +47,72 @@ def _operator(operator: str) -> str:
     return operator
 
 
-def expand_with_operator(view_ldr: np.ndarray, operator: str, **params) -> np.ndarray:
+def expand_with_operator(view_ldr: np.ndarray, operator: str, *, max_lum: float, **params) -> np.ndarray:
     """(H, W, 3) float32 HDR of a linear 0..1 rendering of the cloud by ``landis`` or ``banterle``.
 
-    The conventions of the panorama evaluation (:func:`probeless.pano.expand.expand_cpu`): the
-    operators of :mod:`probeless.pano.itmo` with their defaults (``max_lum = 10``, 1 = LDR white),
-    applied to linear values; a view is linear already, so no gamma is decoded here. ``params`` go to
-    the operator.
+    The operators of :mod:`probeless.pano.itmo` applied to linear values (a view is linear already, so no gamma
+    is decoded here), with LDR white (1) mapped to ``max_lum`` [cloud units]: the peak comes from the data (the
+    photo's brightest luminance in cloud units, :func:`probeless.hdr.expand.operator_peak`) or from the user,
+    never from a constant. Banterle's ``l_white`` is ``max_lum`` too. ``params`` go to the operator.
     """
     v = np.asarray(view_ldr, dtype=np.float32)
     if v.ndim != 3 or v.shape[2] != 3:
         raise HdrError(f"view_ldr: expected an (H, W, 3) image, got shape {v.shape}")
     if not np.isfinite(v).all() or v.min(initial=0.0) < 0 or v.max(initial=0.0) > 1.0 + 1e-6:
         raise HdrError("view_ldr: values must be finite linear LDR values in 0..1")
-    return itmo.apply_itmo(_operator(operator), v, **params)
+    if _operator(operator) == "banterle":
+        params.setdefault("l_white", max_lum)
+    return itmo.apply_itmo(operator, v, max_lum=float(max_lum), **params)
 
 
-def expand_points(ldr_points: np.ndarray, operator: str, **params) -> np.ndarray:
-    """(N, 3) float32: LANDIS-PC / BANTERLE-PC, the operator on the points' colours as a 1 x N image.
+KNN = 32
+"""Neighbours of the point-cloud expand map (BANTERLE-PC)."""
 
-    Landis is per pixel, so this is exact. Banterle's expand map is a Gaussian blur of the
-    over-exposed mask over the image (sigma = ``sigma_frac`` x width): on a 1 x N image it blurs along
-    the point order, which has no spatial meaning, as in the paper's "trivial extension".
+
+def knn_expand_map(points: np.ndarray, mask: np.ndarray, k: int = KNN, at: np.ndarray | None = None) -> np.ndarray:
+    """(N,) float32 expand map of BANTERLE-PC: the mean of ``mask`` over each point's ``k`` nearest neighbours (the
+    point included; ``scipy.spatial.cKDTree``), normalised to max 1: the image operator's blur of the clipped mask,
+    taken over the cloud's kNN graph instead of an image grid. ``at`` (bool (N,)): compute it only there (0
+    elsewhere), e.g. at the over-exposed points, the only ones the transfer changes."""
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, np.float64)
+    m = np.asarray(mask, np.float32)
+    e = np.zeros(len(p), np.float32)
+    rows = np.flatnonzero(np.ones(len(p), bool) if at is None else at)
+    if len(rows) == 0 or not m.any():
+        return e
+    kk = min(int(k), len(p))
+    _, nb = cKDTree(p).query(p[rows], k=kk, workers=-1)
+    nb = nb.reshape(len(rows), kk)
+    e[rows] = m[nb].mean(axis=1)
+    return e / max(float(e.max()), 1e-12)
+
+
+def expand_points(ldr_points: np.ndarray, operator: str, *, max_lum: float, points: np.ndarray | None = None,
+                  k: int = KNN) -> np.ndarray:
+    """(N, 3) float32: LANDIS-PC / BANTERLE-PC, the operator applied to each point's colour.
+
+    Landis is per value, so this is the image operator exactly. Banterle's expand map blurs the over-exposed mask:
+    here over the kNN graph of ``points`` (:func:`knn_expand_map`, required for ``banterle``), not along the point
+    order. ``max_lum`` as in :func:`expand_with_operator`.
     """
     p = _points(ldr_points, "ldr_points")
     if p.shape[0] == 0:
         return p.copy()
-    return expand_with_operator(p[None], operator, **params)[0]
+    if _operator(operator) == "landis":
+        return itmo.landis_itmo(p, max_lum=float(max_lum))
+    if points is None:
+        raise HdrError("expand_points: banterle needs the points' positions for its kNN expand map")
+    pos = _points(points, "points")
+    if len(pos) != len(p):
+        raise HdrError(f"expand_points: {len(pos)} positions for {len(p)} colours")
+    ld = luminance(p)
+    mask = ld > np.float32(OVEREXPOSED)
+    e = knn_expand_map(pos, mask, k, at=mask)
+    lw = ld * (1.0 - e) + itmo.inverse_reinhard(ld, float(max_lum), float(max_lum)) * e
+    ratio = np.divide(lw, ld, out=np.zeros_like(ld), where=ld > 0)
+    return (p * ratio[:, None]).astype(np.float32)
 
 
 def inverse_ssd_weights(ssd: np.ndarray, eps: float = 1e-6) -> np.ndarray:

@@ -24,7 +24,9 @@ class Lighting:
 
     faces: np.ndarray                                # (6, S, S, 3) float32 linear
     sh: np.ndarray                                   # (bands^2, 3) float64 SH radiance, same units
-    levels: tuple[tuple[float, np.ndarray], ...] = ()  # (roughness, (6, s, s, 3) float32) prefiltered
+    # explicit prefiltered levels (roughness, (6, s, s, 3) float32): the renderer then reads the lobe from them as
+    # they are (no Fresnel, no masking: the probes' definition, probeless.ibl.probes); () = importance-sampled GGX
+    levels: tuple[tuple[float, np.ndarray], ...] = ()
 
 
 def linear_faces(faces: np.ndarray, linear: bool) -> np.ndarray:
@@ -37,16 +39,20 @@ def linear_faces(faces: np.ndarray, linear: bool) -> np.ndarray:
 
 
 def lighting_from_messages(envmap: Cubemap, sh: SHCoefficients | None = None) -> Lighting:
-    """The :class:`Lighting` of an envmap message and its SH (projected from the map when ``sh`` is None)."""
+    """The :class:`Lighting` of an envmap message and its SH (projected from the map when ``sh`` is None).
+
+    The message's ``mips`` are not used: the renderer builds the mip chain of the linear faces itself and
+    importance-samples the GGX lobe from it (box mips read at a roughness level are no GGX prefilter, and an LDR
+    message's mips were averaged in sRGB).
+    """
     faces = linear_faces(envmap.faces, envmap.linear)
-    levels = tuple((lv.roughness, linear_faces(lv.faces, envmap.linear)) for lv in envmap.mips)
     if sh is None:
         coeffs = project_cubemap(faces, 5)
     else:
         if sh.object_id != envmap.object_id:
             raise SchemaError(f"SH of object {sh.object_id!r} given with the envmap of {envmap.object_id!r}")
         coeffs = np.asarray(sh.coeffs, np.float64)
-    return Lighting(faces, coeffs, levels)
+    return Lighting(faces, coeffs)
 
 
 def glossy_faces(lighting: Lighting, roughness: float) -> np.ndarray | None:

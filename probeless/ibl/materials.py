@@ -5,8 +5,9 @@ point-based GI renderer, probeless.pbgi); this IBL renderer reduces it to one :c
 and ignores its texture maps (it uses the constant values).
 
 Every material reduces to one :class:`Shading`: a diffuse term (albedo times SH irradiance / pi, or
-shadowed PRT), one specular lobe (colour times the environment along the reflected ray, blurred by
-roughness) and a refraction term (tint times the environment along the refracted ray, mixed with
+shadowed PRT), one specular GGX lobe (alpha = roughness², Schlick Fresnel from the colour at normal incidence to
+white at grazing, Smith masking, Filament's multiple-scattering compensation; a mirror is roughness 0) and a
+refraction term (tint times the environment along the refracted ray, mixed with
 the reflection by the exact dielectric Fresnel factor). Refraction is a single interface: the ray
 bends once entering the surface and then reads the environment; it does not exit through the back.
 """
@@ -27,13 +28,13 @@ RGB = tuple[float, float, float]
 
 @dataclass(frozen=True)
 class Mirror:
-    colour: RGB = (1.0, 1.0, 1.0)   # reflectance per channel [0..1]
+    colour: RGB = (1.0, 1.0, 1.0)   # reflectance at normal incidence per channel (Schlick f0) [0..1]
 
 
 @dataclass(frozen=True)
 class Metal:
-    colour: RGB = (0.95, 0.64, 0.54)  # reflectance per channel (copper by default) [0..1]
-    roughness: float = 0.3            # perceptual roughness: 0 = mirror, 1 = coarsest mip [0..1]
+    colour: RGB = (0.95, 0.64, 0.54)  # reflectance at normal incidence per channel (Schlick f0; copper) [0..1]
+    roughness: float = 0.3            # perceptual roughness: GGX alpha = roughness², 0 = mirror [0..1]
 
 
 @dataclass(frozen=True)
@@ -71,10 +72,15 @@ class Mix:
 
 @dataclass(frozen=True)
 class Shading:
-    """What the shader evaluates: ``kd * diffuse + ks * specular(roughness) + kt * transmission(ior)``."""
+    """What the shader evaluates: ``kd * diffuse + specular(ks, f90, roughness) + kt * transmission(ior)``.
+
+    The specular lobe is GGX (alpha = roughness²) with Schlick's Fresnel from ``ks`` at normal incidence to ``f90``
+    at grazing (f90 = the layer's weight: 1 for a whole material), and Filament's multiple-scattering compensation.
+    """
 
     kd: np.ndarray = field(default_factory=lambda: np.zeros(3))  # diffuse albedo weight per channel
-    ks: np.ndarray = field(default_factory=lambda: np.zeros(3))  # specular reflectance per channel
+    ks: np.ndarray = field(default_factory=lambda: np.zeros(3))  # specular reflectance at normal incidence (f0)
+    f90: np.ndarray = field(default_factory=lambda: np.zeros(3))  # specular reflectance at grazing incidence
     kt: np.ndarray = field(default_factory=lambda: np.zeros(3))  # transmission tint per channel
     roughness: float = 0.0
     ior: float = 1.0
@@ -83,25 +89,27 @@ class Shading:
 
 def shading(material, weight: float = 1.0) -> Shading:
     """The :class:`Shading` of a material (a :class:`Mix` sums its layers; one roughness and ior each)."""
+    white = np.full(3, float(weight))
     if isinstance(material, Mirror):
-        return Shading(ks=weight * np.array(material.colour, float))
+        return Shading(ks=weight * np.array(material.colour, float), f90=white)
     if isinstance(material, Metal):
-        return Shading(ks=weight * np.array(material.colour, float), roughness=material.roughness)
+        return Shading(ks=weight * np.array(material.colour, float), f90=white, roughness=material.roughness)
     if isinstance(material, Glass):
         return Shading(kt=weight * np.array(material.tint, float), ior=material.ior)
     if isinstance(material, Diffuse):
         return Shading(kd=weight * np.array(material.albedo, float), shadowed=material.shadowed)
     if isinstance(material, Principled):  # maps ignored here (module doc)
         base, m = np.array(material.base_color, float), float(material.metalness)
-        return Shading(kd=weight * base * (1 - m), ks=weight * (0.04 * (1 - m) + base * m),
+        return Shading(kd=weight * base * (1 - m), ks=weight * (0.04 * (1 - m) + base * m), f90=white,
                        roughness=float(material.roughness))
     if isinstance(material, Mix):
         parts = [shading(m, weight * w) for w, m in material.layers]
-        spec = {p.roughness for p in parts if p.ks.any()}
+        spec = {p.roughness for p in parts if p.ks.any() or p.f90.any()}
         iors = {p.ior for p in parts if p.kt.any()}
         if len(spec) > 1 or len(iors) > 1:
             raise SceneError(f"mix: at most one specular roughness and one ior, got {sorted(spec)} / {sorted(iors)}")
-        return Shading(kd=sum(p.kd for p in parts), ks=sum(p.ks for p in parts), kt=sum(p.kt for p in parts),
+        return Shading(kd=sum(p.kd for p in parts), ks=sum(p.ks for p in parts), f90=sum(p.f90 for p in parts),
+                       kt=sum(p.kt for p in parts),
                        roughness=spec.pop() if spec else 0.0, ior=iors.pop() if iors else 1.0,
                        shadowed=any(p.shadowed for p in parts if p.kd.any()))
     raise SceneError(f"not a material: {material!r}")

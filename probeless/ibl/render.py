@@ -1,7 +1,8 @@
 """GPU image-based lighting of virtual objects seen by a pinhole camera (paper §4.8).
 
 :class:`IblRenderer` draws each object with its material under its own environment (a samplerCube
-with a mip chain, sampled with world directions) into linear colour in camera units, a mask and a
+with its full mip chain, sampled with world directions: the GGX lobe importance-sampled with filtered, trilinear
+lookups, mirrors and refractions antialiased, ``probeless/gl/glsl/ibl_specular.glsl``) into linear colour in camera units, a mask and a
 depth image, and the contact shadow of each object on its supporting plane as a per-pixel ratio
 (occluded / unoccluded irradiance, by differential PRT: transfer vectors of a floor grid computed at
 load time by ray casting against the object, dotted with the object's SH each frame).
@@ -17,16 +18,33 @@ import moderngl
 import numpy as np
 
 from probeless.envmap.sh import cosine_lobe
+from probeless.errors import ProbelessError
 from probeless.geom.projection import clip_from_camera
 from probeless.gl.context import GL_TEXTURE_CUBE_MAP_SEAMLESS, create_context, current_context
 from probeless.gl.programs import load_program, mat_bytes, set_uniforms
-from probeless.gl.textures import upload_cube
+from probeless.gl.textures import upload_cube, upload_texture
 from probeless.ibl import prt
+from probeless.ibl.dfg import dfg_table
 from probeless.ibl.lighting import Lighting, glossy_faces
 from probeless.ibl.materials import shading
+from probeless.ibl.prefilter import GgxPrefilter, chain_levels, level_roughness
 from probeless.ibl.mesh_io import PlacedMesh
 
 SHADERS = Path(__file__).with_name("shaders")
+LOBES = ("exact", "split_sum", "sampled")
+SUM_ROUGHNESS = 0.3  # "exact": lobes at least this rough are summed over the texels of a small mip level
+SUM_FACE = ((0.55, 16), (SUM_ROUGHNESS, 32))  # (roughness from, face size of the summed level [texels])
+SPEC_SAMPLES = 128  # lookups per pixel of a rough specular lobe (importance-sampled, filtered) [count]
+AA_SAMPLES = 64    # lookups per pixel of a mirror (roughness 0) or a refraction, spread over the pixel [count]
+
+
+def sum_level(roughness: float, size: int) -> int:
+    """The mip level of an S = ``size`` map whose texels the "exact" lobe sums for ``roughness`` (-1: none, the lobe
+    is importance-sampled: smoother than SUM_ROUGHNESS)."""
+    for rough, face in SUM_FACE:
+        if roughness >= rough:
+            return max(0, int(np.log2(max(1, size) / face)))
+    return -1
 
 
 @dataclass(frozen=True)
@@ -81,15 +99,23 @@ class _Gpu:
             self.floor_vao = ctx.vertex_array(floor_prog, [(self.floor_pos, "3f", "in_position"),
                                                            (self.floor_ratio, "3f", "in_ratio")],
                                               index_buffer=self.floor_ibo)
-        self.env = self.glossy = None
+        self.env = self.glossy = self.chain = None
+        self.sum_level = -1
 
-    def set_lighting(self, ctx, lighting: Lighting) -> None:
-        """Upload the environment and evaluate the per-vertex PRT radiance and floor shadow ratio."""
+    def set_lighting(self, ctx, lighting: Lighting, prefilter=None, exact: bool = True) -> None:
+        """Upload the environment (with its full mip chain) and evaluate the per-vertex PRT radiance and floor
+        shadow ratio. Explicit prefiltered ``lighting.levels`` are uploaded for the lobe (read as they are)."""
         self.release_textures()
         self.env = upload_cube(ctx, np.asarray(lighting.faces, np.float32))
+        self.env_size = float(lighting.faces.shape[1])
         pre = glossy_faces(lighting, self.shade.roughness)
+        lobe = pre is None and (self.shade.ks.any() or self.shade.f90.any())
+        lobe = lobe and self.shade.roughness >= level_roughness(chain_levels(lighting.faces.shape[1]))[1]
+        self.chain, levels = prefilter.chain(lighting.faces) if prefilter is not None and lobe else (None, 1)
+        self.sum_level = -1 if prefilter is not None or not exact else sum_level(self.shade.roughness,
+                                                                                  lighting.faces.shape[1])
+        self.chain_max_level = float(levels - 1)
         self.glossy = upload_cube(ctx, np.asarray(pre, np.float32)) if pre is not None else None
-        self.glossy_lod = 0.0 if pre is not None else self.shade.roughness * np.log2(lighting.faces.shape[1])
         sh = lighting.sh[:25]
         per_row = np.repeat(cosine_lobe(5), [2 * b + 1 for b in range(5)])
         self.sh_irr = (sh * per_row[:, None]).astype("f4")
@@ -102,10 +128,10 @@ class _Gpu:
             self.floor_ratio.write(ratio.astype("f4").tobytes())
 
     def release_textures(self) -> None:
-        for tex in (self.env, self.glossy):
+        for tex in (self.env, self.glossy, getattr(self, "chain", None)):
             if tex is not None:
                 tex.release()
-        self.env = self.glossy = None
+        self.env = self.glossy = self.chain = None
 
     def release(self) -> None:
         self.release_textures()
@@ -121,12 +147,20 @@ class IblRenderer:
     """Renders a fixed set of :class:`IblObject` lit by per-object :class:`Lighting`."""
 
     def __init__(self, objects: list[IblObject], *, exposure: float = 1.0, near: float = 0.05, far: float = 50.0,
-                 ctx: moderngl.Context | None = None):
+                 ctx: moderngl.Context | None = None, spec_samples: int = SPEC_SAMPLES, aa_samples: int = AA_SAMPLES,
+                 energy_compensation: bool = True, lobe: str = "exact"):
         self.own_ctx = ctx is None
         self.ctx = ctx or create_context()
         self.ctx.__enter__()
         self.ctx.enable_direct(GL_TEXTURE_CUBE_MAP_SEAMLESS)
         self.obj_prog = load_program(self.ctx, "object", shader_dir=SHADERS)
+        self.dfg = upload_texture(self.ctx, dfg_table(), filter="linear")
+        self.spec_samples, self.aa_samples = int(spec_samples), int(aa_samples)
+        self.energy_compensation = bool(energy_compensation)
+        if lobe not in LOBES:
+            raise ProbelessError(f"IblRenderer: lobe must be one of {', '.join(LOBES)}, got {lobe!r}")
+        self.lobe = lobe
+        self.prefilter = GgxPrefilter(self.ctx) if lobe == "split_sum" else None
         self.floor_prog = load_program(self.ctx, "floor", shader_dir=SHADERS)
         self.objects = {o.id: _Gpu(self.ctx, self.obj_prog, self.floor_prog, o) for o in objects}
         self.exposure, self.near, self.far = exposure, near, far
@@ -135,7 +169,8 @@ class IblRenderer:
     @current_context
     def set_lighting(self, object_id: str, lighting: Lighting) -> None:
         """Light object ``object_id`` by ``lighting`` from now on."""
-        self.objects[object_id].set_lighting(self.ctx, lighting)
+        g = self.objects[object_id]
+        g.set_lighting(self.ctx, lighting, self.prefilter, exact=self.lobe == "exact")
 
     def _framebuffers(self, width: int, height: int):
         if self._targets is None or self._targets[0] != (width, height):
@@ -164,14 +199,20 @@ class IblRenderer:
         p["clip_from_world"].write(clip)
         p["camera_from_world"].write(mat_bytes(camera_from_world))
         drawn = [g for g in self.objects.values() if g.env is not None]
+        self.dfg.use(2)
         for g in drawn:
             s = g.shade
             (g.glossy or g.env).use(1)
             g.env.use(0)
-            set_uniforms(p, env=0, glossy=1, glossy_lod=float(g.glossy_lod),
+            (g.chain or g.env).use(3)
+            set_uniforms(p, env=0, glossy=1, dfg=2, chain=3, chain_max_level=g.chain_max_level,
+                         split_sum=g.chain is not None, sum_level=int(g.sum_level), use_levels=g.glossy is not None,
+                         env_size=g.env_size,
                          camera_position=tuple(world_from_camera[:3, 3]),
-                         kd=tuple(s.kd), ks=tuple(s.ks), kt=tuple(s.kt), ior=float(s.ior),
-                         use_prt=g.prt is not None, exposure=float(self.exposure))
+                         kd=tuple(s.kd), ks=tuple(s.ks), f90=tuple(s.f90), roughness=float(s.roughness),
+                         kt=tuple(s.kt), ior=float(s.ior), energy_compensation=self.energy_compensation,
+                         spec_samples=self.aa_samples if s.roughness <= 0 or g.chain is not None else self.spec_samples,
+                         refr_samples=self.aa_samples, use_prt=g.prt is not None, exposure=float(self.exposure))
             if "sh_irr" in p:
                 p["sh_irr"].write(g.sh_irr.tobytes())
             g.vao.render(moderngl.TRIANGLES)
@@ -202,5 +243,8 @@ class IblRenderer:
             for res in self._targets[1:]:
                 res.release()
         self._targets = None
+        self.dfg.release()
+        if self.prefilter is not None:
+            self.prefilter.prog.release()
         if self.own_ctx:
             self.ctx.release()

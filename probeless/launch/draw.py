@@ -79,6 +79,11 @@ def _collect(graph: Graph) -> tuple[dict[str, str], list[Edge]]:
                 timers[key] = f"timer {value} {_TIMER_UNITS[unit]}"
                 edges.append(Edge(key, decl.id, [inp.name] + policy))
                 continue
+            if inp.external is not None:  # a topic of another running graph: drawn as a source of its own
+                key = f"external:{inp.external}"
+                timers[key] = f"{inp.external}: {inp.source.partition(':')[2]}"
+                edges.append(Edge(key, decl.id, [inp.name] + policy))
+                continue
             src_id, output = split_source(graph, inp.source)
             _, typ = output_type(graph.node_classes[src_id], output)
             type_name = typ.TYPE_NAME if typ is not None else "any type"

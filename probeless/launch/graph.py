@@ -21,8 +21,9 @@
     security:                                   # optional, top-level file only: CURVE on every tcp socket
       curve: {keys: keys}                       # key directory (``probeless keys generate``), relative to this file
 
-Substitutions in any string: ``$(arg NAME)``, ``$(env NAME)`` / ``$(env NAME default)`` and
-``$(dirname)`` (this file's directory). A string that is exactly one substitution keeps the
+Substitutions in any string: ``$(arg NAME)``, ``$(env NAME)`` / ``$(env NAME default)``,
+``$(dirname)`` (this file's directory) and ``$(given NAME THEN ELSE)`` (``THEN`` when argument ``NAME`` was
+passed, else ``ELSE``). A string that is exactly one substitution keeps the
 value's type. Inside an include, ids and input sources are prefixed with the namespace; a source
 starting with ``/`` is absolute.
 """
@@ -37,13 +38,15 @@ from typing import Any
 
 from probeless.errors import GraphError
 from probeless.launch.args import Substituter, resolve_args
+from probeless.launch.relpath import rooted, untag
 from probeless.launch.yamlload import LineDict, LineList, load_yaml
 from probeless.runtime.queues import POLICIES
 
 TOP_KEYS = {"description", "args", "hosts", "include", "nodes", "security"}
 NODE_KEYS = {"id", "node", "inputs", "outputs", "params", "restart", "max_restarts", "restart_backoff_s",
              "host", "description"}
-INPUT_KEYS = {"source", "queue_size", "policy", "feedback", "max_bytes", "exclude"}
+INPUT_KEYS = {"source", "queue_size", "policy", "feedback", "max_bytes", "exclude", "external"}
+EXTERNAL_PREFIX = "external:"   # source of an input read from another running graph (never a node id)
 INCLUDE_KEYS = {"file", "namespace", "args"}
 DEFAULT_QUEUE = {"policy": "drop_oldest", "queue_size": 10}
 _TIMER = re.compile(r"^timer/(hz|ms|s)/([0-9]*\.?[0-9]+)$")
@@ -63,6 +66,8 @@ class InputDecl:
     feedback: bool = False          # closes a loop: does not keep the node running once its other inputs end
     max_bytes: int | None = None    # byte bound of the queue [bytes]; None = the runtime's default (256 MiB)
     exclude: tuple[str, ...] = ()   # a pattern source's topics to leave out (probeless.launch.globs)
+    external: str | None = None     # another running graph (run id or graph file) whose topic this input reads
+    resolved: dict | None = None    # external: {run_id, endpoint, type_name}, filled by validate()
 
 
 @dataclass
@@ -78,6 +83,7 @@ class NodeDecl:
     outputs: list[str] | None = None
     params: dict = field(default_factory=dict)
     param_lines: dict = field(default_factory=dict)
+    param_bases: dict = field(default_factory=dict)  # key -> folder a relative path is from (None: working folder)
     restart: str = "never"
     max_restarts: int = 3
     restart_backoff_s: float = 0.5
@@ -99,12 +105,14 @@ class Graph:
     curve_keys: Path | None = None  # key directory of ``security: {curve: {keys: DIR}}``
     security_line: int = 0          # line of the ``security:`` block (for messages)
     node_classes: dict[str, type] = field(default_factory=dict)  # node id -> Node class, filled by validate()
+    cli_args: dict[str, Any] = field(default_factory=dict)  # the name:=value arguments of the command line
 
 
 def parse_graph(path: str | Path, overrides: dict[str, Any] | None = None) -> Graph:
     """Parse a graph file and its includes. Errors are collected in ``graph.errors``."""
-    graph = Graph(str(path))
-    _parse_file(Path(path), overrides or {}, "", graph, stack=())
+    graph = Graph(str(path), cli_args=dict(overrides or {}))
+    cli = {k: rooted(v, None) for k, v in (overrides or {}).items()}  # command-line paths: the working folder's
+    _parse_file(Path(path), cli, "", graph, stack=())
     return graph
 
 
@@ -121,11 +129,12 @@ def _parse_file(path: Path, overrides: dict, ns: str, graph: Graph, stack: tuple
     for key in doc:
         if key not in TOP_KEYS:
             err(f"unknown top-level key{_suggest(key, TOP_KEYS)}", doc.line_of(key), key=key)
-    args = resolve_args(doc.get("args"), overrides, err, doc.line_of("args"), is_root=not stack)
+    args = resolve_args(doc.get("args"), overrides, err, doc.line_of("args"), is_root=not stack,
+                        cli_err=graph.errors.append)
     args = _defaults(args, overrides, doc, path, err)
     if not stack:
         graph.args = dict(args)
-    subst = Substituter(args, path.parent, err)
+    subst = Substituter(args, path.parent, err, given=overrides)
     for name, host in (_mapping(doc, "hosts", err) or {}).items():
         graph.hosts[str(name)] = subst(host, doc.line_of("hosts"))
     if "security" in doc:
@@ -168,7 +177,7 @@ def _defaults(args: dict, overrides: dict, doc: LineDict, path: Path, err) -> di
     for k, v in args.items():
         if k not in overrides and isinstance(v, str):
             line = decl.line_of(k) if isinstance(decl, LineDict) else doc.line_of("args")
-            v = Substituter(dict(out), path.parent, err)(v, line)
+            v = Substituter(dict(out), path.parent, err, given=overrides)(v, line)
         out[k] = v
     return out
 
@@ -220,7 +229,8 @@ def _include(inc: Any, line: int, parent: Path, ns: str, graph: Graph, stack: tu
         return
     full_ns = "/".join(p for p in (ns, sub_ns) if p)
     try:
-        _parse_file(path, dict(inc.get("args") or {}), full_ns, graph, stack)
+        args = {k: rooted(v, parent.parent) for k, v in (inc.get("args") or {}).items()}  # paths: from this file
+        _parse_file(path, args, full_ns, graph, stack)
     except GraphError as exc:
         graph.errors.append(exc)
 
@@ -252,7 +262,7 @@ def _parse_node(raw: Any, line: int, ns: str, file: str, subst: Substituter, err
             err("'outputs' must be a list of output names", raw.line_of("outputs"), node_id, "outputs")
     params = raw.get("params") or LineDict()
     if isinstance(params, dict):
-        decl.params = dict(params)
+        decl.params, decl.param_bases = untag(dict(params))
         decl.param_lines = dict(getattr(params, "lines", {}))
     else:
         err("'params' must be a mapping", raw.line_of("params"), node_id, "params")
@@ -320,17 +330,43 @@ def _parse_inputs(inputs: Any, line: int, ns: str, decl: NodeDecl, err) -> None:
         if exclude and not any(c in "*?[" for c in spec["source"]):
             err("exclude applies to a pattern source (with *, ? or [) only", iline, decl.id, key)
             continue
+        if "external" in spec:
+            _external_input(str(name), spec, policy, size, iline, decl, err)
+            continue
         decl.inputs[str(name)] = _input(str(name), spec["source"], ns, policy, size, iline, decl.id, err)
         decl.inputs[str(name)].feedback = feedback
         decl.inputs[str(name)].max_bytes = max_bytes
         decl.inputs[str(name)].exclude = tuple(_namespaced(x, ns) for x in exclude)
 
 
+def _external_input(name: str, spec: dict, policy: str, size: int, line: int, decl: NodeDecl, err) -> None:
+    """``{source: TOPIC, external: RUN_ID|GRAPH_FILE}``: a topic of another running graph (launch/external.py)."""
+    key, external, source = f"inputs.{name}", spec["external"], spec["source"]
+    if not isinstance(external, str) or not external:
+        err("external must name a running graph: its run id (`probeless runs`) or its graph file", line,
+            decl.id, key)
+    elif policy == "block":
+        err("an external input cannot use policy 'block' (it would hold up the other graph); use latest or "
+            "drop_oldest", line, decl.id, key)
+    elif any(c in source for c in "*?[") or source.startswith("timer/"):
+        err("an external input names one topic of the other graph, e.g. cam/image", line, decl.id, key)
+    else:
+        inp = InputDecl(name, EXTERNAL_PREFIX + source.lstrip("/"), policy, size, line)
+        inp.external = external
+        decl.inputs[name] = inp
+
+
 def _input(name: str, source: str, ns: str, policy: str, size: int, line: int, node_id: str, err) -> InputDecl:
     inp = InputDecl(name, source, policy, size, line)
     if source.startswith("timer/"):
         m = _TIMER.match(source)
-        if not m or float(m.group(2)) <= 0:
+        if "$(" in source:
+            return inp  # an argument that was not given or was out of range: reported where it was passed
+        if m and float(m.group(2)) <= 0:
+            err(f"timer {source!r}: the {'rate' if m.group(1) == 'hz' else 'period'} must be above 0, "
+                f"got {m.group(2)}", line, node_id, f"inputs.{name}")
+            return inp
+        if not m:
             err(f"invalid timer {source!r} (use timer/hz/N, timer/ms/N or timer/s/N)", line, node_id,
                 f"inputs.{name}")
             return inp

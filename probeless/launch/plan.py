@@ -11,6 +11,7 @@ from typing import Any
 from probeless.launch.graph import Graph
 from probeless.launch.secure import curve_plan
 from probeless.launch.validate import host_endpoint, split_source
+from probeless.runtime.control import ctl_endpoint
 from probeless.runtime.node import output_type
 from probeless.runtime.transport import endpoint_for_policy, lossy_endpoint
 
@@ -48,6 +49,10 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
                 entry["max_bytes"] = inp.max_bytes
             if inp.timer_period_ns is not None:
                 entry["timer_period_ns"] = inp.timer_period_ns
+            elif inp.resolved is not None:  # external: a topic of another running graph (launch/external.py)
+                ext = inp.resolved
+                entry.update(topic=ext["topic"], source_node=None, output=None, external=ext["run_id"],
+                             endpoint=endpoint_for_policy(ext["endpoint"], inp.policy), type_name=ext["type_name"])
             else:
                 src_id, out = split_source(graph, inp.source)
                 topic = graph.nodes[src_id].topics.get(out, f"{src_id}/{out}")
@@ -61,13 +66,14 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
         names = decl.outputs if decl.outputs is not None else [o for o in cls.OUTPUTS if not o.endswith("/*")]
         nodes[decl.id] = {"id": decl.id, "index": index, "node": decl.node, "params": decl.params,
                           "file": decl.file, "line": decl.line, "endpoint": endpoints[decl.id],
+                          "ctl_endpoint": ctl_endpoint(run_dir, index),
                           "lossy_endpoint": lossy_endpoint(endpoints[decl.id]),
                           "host": decl.host, "inputs": inputs, "restart": decl.restart,
                           "max_restarts": decl.max_restarts, "restart_backoff_s": decl.restart_backoff_s,
                           "outputs": {o: _output(decl, o) for o in names}}
     for node in nodes.values():
         for inp in node["inputs"]:
-            if "topic" in inp:
+            if "topic" in inp and inp.get("source_node") in nodes:
                 node_out = nodes[inp["source_node"]]["outputs"].setdefault(inp["output"], {"topic": inp["topic"]})
                 node_out["subscribers"] = len(subscribers[inp["topic"]])
                 node_out["subscriber_ids"] = subscribers[inp["topic"]]
@@ -81,6 +87,7 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
     for node in nodes.values():
         for out in node["outputs"].values():
             out.setdefault("subscribers", 0)
-    return {"file": graph.file, "args": graph.args, "run_dir": str(run_dir), "launcher_pid": os.getpid(),
+    return {"file": graph.file, "file_abs": str(Path(graph.file).resolve()), "run_id": Path(run_dir).name,
+            "args": graph.args, "run_dir": str(run_dir), "launcher_pid": os.getpid(),
             "started_ns": time.time_ns(),
             "control": f"ipc://{run_dir}/control", "nodes": nodes, "curve": curve_plan(graph, nodes)}

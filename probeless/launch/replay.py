@@ -8,6 +8,8 @@ experiment: replay the inputs, run the new node, compare.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from probeless.errors import BagError, GraphError
 from probeless.launch.graph import Graph, InputDecl, NodeDecl
 from probeless.launch.validate import split_source
@@ -69,25 +71,48 @@ def add_recorder(graph: Graph, path: str, *, topics: list[str] | None = None, di
 
 
 def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: list[str] | None = None,
-               remap: dict[str, str] | None = None, params: dict | None = None) -> list[str]:
+               remap: dict[str, str] | None = None, params: dict | None = None,
+               recorded_nodes: dict[str, str] | None = None, keep: list[str] | None = None,
+               notes: list[str] | None = None) -> list[str]:
     """Swap source nodes for a ``bag_player``; ``recorded`` maps recorded topic -> type name.
 
-    Returns the ids of the replaced nodes. Raises GraphError/BagError naming the topic at fault.
+    ``recorded_nodes`` (node id -> ``node:`` type of the recorded graph) marks swaps: a node whose
+    type differs from the recorded one runs live, and so does every node it feeds, unless ``replace``
+    names it. ``keep`` names nodes that run live anyway. ``notes`` receives one line per decision
+    (what comes from the recording, what runs live and why). Returns the ids of the replaced nodes.
+    Raises GraphError/BagError naming the node or topic at fault.
     """
     remap = remap or {}
     played = {remap.get(t, t): (t, typ) for t, typ in recorded.items()}
     outputs = {d.id: node_topics(graph, d) for d in graph.nodes.values()}
+    keep = list(keep or [])
+    for node_id in keep + list(replace or []):
+        if node_id not in graph.nodes:
+            flag = "--keep" if node_id in keep else "--replace"
+            raise GraphError(f"{flag}: no node {node_id!r} in the graph (nodes: {', '.join(graph.nodes)})",
+                             file=graph.file)
+    both = sorted(set(keep) & set(replace or []))
+    if both:
+        raise GraphError(f"node(s) {both} are in both --replace and --keep", file=graph.file)
+    swapped = swapped_nodes(graph, recorded_nodes or {})
+    lines = [f"{n}: recorded as {rec}, graph has {graph.nodes[n].node}: "
+             + ("replaced by the recording (--replace names it)" if replace is not None and n in replace
+                else f"running {graph.nodes[n].node} live") for n, rec in swapped.items()]
+    fed: dict[str, str] = {}
     if replace is None:
-        replace = [n for n, outs in outputs.items() if outs and all(t in played for t in outs.values())]
+        roots = [n for n in graph.nodes if n in swapped or n in keep]
+        fed = downstream(graph, roots)
+        replace = [n for n, outs in outputs.items() if outs and all(t in played for t in outs.values())
+                   and n not in swapped and n not in keep and n not in fed]
         if not replace:
             raise BagError(f"{bag}: no node's outputs are all in the recording; name the nodes with --replace "
                            f"(recorded topics: {sorted(played)})")
     for node_id in replace:
-        if node_id not in graph.nodes:
-            raise GraphError(f"--replace: no node {node_id!r} in the graph", file=graph.file)
         absent = [t for t in outputs[node_id].values() if t not in played]
         if absent:
             raise BagError(f"{bag}: cannot replace node {node_id!r}: topic(s) {absent} not in the recording")
+    if notes is not None:
+        notes += lines + _plan_lines(graph, replace, keep, swapped, fed)
     needed: dict[str, str] = {}
     for decl in graph.nodes.values():
         if decl.id in replace:
@@ -109,6 +134,57 @@ def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: lis
                      "remap": [f"{a}:={b}" for a, b in sorted(remap.items())], **(params or {})}
     add_player_node(graph, player_params, {t: played[t][1] for t in needed})
     return list(replace)
+
+
+def swapped_nodes(graph: Graph, recorded_nodes: dict[str, str]) -> dict[str, str]:
+    """node id -> recorded type, for the graph's nodes whose type differs from the recording's."""
+    out = {}
+    for node_id, decl in graph.nodes.items():
+        rec = recorded_nodes.get(node_id)
+        if rec is None or rec == decl.node or node_id in (PLAYER_ID, RECORDER_ID):
+            continue
+        try:  # the same class under another spelling (registered name vs module:Class) is no swap
+            if resolve_node(rec, base=Path(decl.file).parent) is graph.node_classes.get(node_id):
+                continue
+        except GraphError:
+            pass
+        out[node_id] = rec
+    return out
+
+
+def downstream(graph: Graph, roots: list[str]) -> dict[str, str]:
+    """Every node fed, directly or through others, by one of ``roots``: node id -> the root feeding it."""
+    consumers: dict[str, list[str]] = {}
+    for decl in graph.nodes.values():
+        for inp in decl.inputs.values():
+            src = split_source(graph, inp.source) if inp.timer_period_ns is None else None
+            if src:
+                consumers.setdefault(src[0], []).append(decl.id)
+    out: dict[str, str] = {}
+    for root in roots:
+        todo = list(consumers.get(root, []))
+        while todo:
+            node_id = todo.pop()
+            if node_id not in out and node_id not in roots:
+                out[node_id] = root
+                todo += consumers.get(node_id, [])
+    return out
+
+
+def _plan_lines(graph: Graph, replace: list[str], keep: list[str], swapped: dict[str, str],
+                fed: dict[str, str]) -> list[str]:
+    """``from the recording: ...`` and ``live: ...`` (each with the reason when it is not the usual one)."""
+    def why(node_id: str) -> str:
+        if node_id in swapped:
+            return " (swapped)"
+        if node_id in keep:
+            return " (--keep)"
+        if node_id in fed:
+            return f" (fed by {fed[node_id]})"
+        return ""
+    live = [f"{n}{why(n)}" for n in graph.nodes if n not in replace and n not in (PLAYER_ID, RECORDER_ID)]
+    return [f"from the recording: {', '.join(f'{n} ({graph.nodes[n].node})' for n in replace)}",
+            f"live: {', '.join(live) or 'none'}"]
 
 
 def add_player_node(graph: Graph, params: dict, topic_types: dict[str, str]) -> None:

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import difflib
+from pathlib import Path
 from typing import Any
 
-from probeless.errors import GraphError
+from probeless.errors import GraphError, ParamError
 from probeless.launch.globs import expand_patterns
 from probeless.launch.graph import Graph, NodeDecl
+from probeless.launch.relpath import explain, root_input_paths
 from probeless.runtime.node import input_type, output_type
 from probeless.runtime.params import check_params
 from probeless.runtime.registry import resolve_node
@@ -19,7 +22,7 @@ def validate(graph: Graph) -> list[GraphError]:
     classes: dict[str, type] = {}
     for decl in graph.nodes.values():
         try:
-            classes[decl.id] = resolve_node(decl.node)
+            classes[decl.id] = resolve_node(decl.node, base=Path(decl.file).parent)
         except GraphError as exc:
             errors.append(GraphError(exc.message, file=decl.file, line=decl.lines.get("node", decl.line),
                                      node_id=decl.id, key="node"))
@@ -28,15 +31,49 @@ def validate(graph: Graph) -> list[GraphError]:
         cls = classes.get(decl.id)
         if cls is None:
             continue
-        errors += check_params(cls.Params, decl.params, node_id=decl.id, file=decl.file,
-                               lines=decl.param_lines, line=decl.lines.get("params", decl.line))
+        rooted = root_input_paths(decl.params, decl.param_bases, cls.Params, Path(decl.file).parent)
+        errors += explain(check_params(cls.Params, decl.params, node_id=decl.id, file=decl.file,
+                                       lines=decl.param_lines, line=decl.lines.get("params", decl.line)), rooted)
         errors += _check_outputs(decl, cls)
         errors += _check_inputs(graph, decl, cls, classes)
         errors += _check_host(graph, decl)
     errors += _check_cycles(graph)
     errors += _check_security(graph)
     graph.node_classes = classes
-    return errors
+    return _merge_arg_errors(graph, errors)
+
+
+def _merge_arg_errors(graph: Graph, errors: list[GraphError]) -> list[GraphError]:
+    """Param errors caused by one bad command-line value (``scene:=nope.yaml`` used by three nodes) become a
+    single command-line error naming the argument and every param it reached."""
+    out, merged = [], {}
+    for e in errors:
+        arg = _arg_at_fault(graph, e) if isinstance(e, ParamError) else None
+        if arg is None:
+            out.append(e)
+        elif (arg, e.message) in merged:
+            merged[(arg, e.message)].append(e)
+        else:
+            merged[(arg, e.message)] = [e]
+            out.append((arg, e.message))
+    result = []
+    for item in out:
+        if isinstance(item, GraphError):
+            result.append(item)
+            continue
+        arg, message = item
+        used = ", ".join(f"{e.node_id}.{e.key} ({e.file}:{e.line})" for e in merged[item])
+        result.append(GraphError(f"argument {arg}:={graph.cli_args[arg]}: {message} (used by {used})",
+                                 file="command line"))
+    return result
+
+
+def _arg_at_fault(graph: Graph, e: GraphError) -> str | None:
+    """The command-line argument whose (text) value the error is about, if any."""
+    for name, value in graph.cli_args.items():
+        if isinstance(value, str) and value and e.message.startswith(f"{value}:"):
+            return name
+    return None
 
 
 def _check_security(graph: Graph) -> list[GraphError]:
@@ -84,6 +121,10 @@ def _check_inputs(graph: Graph, decl: NodeDecl, cls: type, classes: dict) -> lis
             errors.append(_err(decl, f"{decl.node} has no input {inp.name!r} (declared: "
                                      f"{', '.join(cls.INPUTS) or 'none'})", key, inp.line))
             continue
+        if inp.external is not None:
+            from probeless.launch.external import check_external  # external.py builds on the graph module
+            errors += check_external(decl, inp, want)
+            continue
         if inp.timer_period_ns is not None:
             from probeless.messages.header import Tick
             if want is not None and want is not Tick:
@@ -95,7 +136,8 @@ def _check_inputs(graph: Graph, decl: NodeDecl, cls: type, classes: dict) -> lis
         split = split_source(graph, inp.source)
         if split is None:
             errors.append(_err(decl, f"dangling input: no node publishes {inp.source!r} "
-                                     f"(expected '<node_id>/<output>')", key, inp.line))
+                                     f"({_did_you_mean(inp.source, _all_topics(graph, classes))}"
+                                     f"expected '<node_id>/<output>')", key, inp.line))
             continue
         src_id, out = split
         src = graph.nodes[src_id]
@@ -104,12 +146,29 @@ def _check_inputs(graph: Graph, decl: NodeDecl, cls: type, classes: dict) -> lis
             continue
         has, got = output_type(src_cls, out)
         if not has or (src.outputs is not None and out not in src.outputs and out != "diagnostics"):
-            errors.append(_err(decl, f"dangling input: node {src_id!r} ({src.node}) has no output {out!r}",
+            outs = _outputs_of(src, src_cls)
+            errors.append(_err(decl, f"dangling input: node {src_id!r} ({src.node}) has no output {out!r} "
+                                     f"({_did_you_mean(out, outs)}outputs: {', '.join(outs) or 'none'})",
                                key, inp.line))
         elif want is not None and got is not None and want.TYPE_NAME != got.TYPE_NAME:
             errors.append(_err(decl, f"type mismatch: {src_id}/{out} publishes {got.TYPE_NAME}, "
                                      f"input {inp.name!r} expects {want.TYPE_NAME}", key, inp.line))
     return errors
+
+
+def _did_you_mean(name: str, candidates: list[str]) -> str:
+    close = difflib.get_close_matches(name, candidates, n=1)
+    return f"did you mean '{close[0]}'? " if close else ""
+
+
+def _outputs_of(decl: NodeDecl, cls: type) -> list[str]:
+    """The output names a node offers in this graph (its ``outputs:`` list, else its class's)."""
+    names = decl.outputs if decl.outputs is not None else [o for o in cls.OUTPUTS if not o.endswith("*")]
+    return list(names) + ["diagnostics"]
+
+
+def _all_topics(graph: Graph, classes: dict) -> list[str]:
+    return [f"{d.id}/{o}" for d in graph.nodes.values() if d.id in classes for o in _outputs_of(d, classes[d.id])]
 
 
 def _check_host(graph: Graph, decl: NodeDecl) -> list[GraphError]:

@@ -1,14 +1,22 @@
 """Equirectangular (latitude-longitude) panorama helpers: pixel <-> direction, texel solid angles.
 
-Convention (used by every ``probeless.pano`` module):
+Convention (used by every ``probeless.pano`` module, its shaders through ``probeless/gl/glsl/equirect.glsl``,
+and every reader of real panoramas and photos):
 
 * world ``z`` is up;
 * row 0 is the top of the image (zenith side); pixel row ``r`` covers polar angles
   ``theta in [r, r + 1] * pi / H`` measured from ``+z``;
 * column ``c`` covers longitudes ``phi in [c, c + 1] * 2 pi / W``, ``phi`` measured from ``+x``
-  towards ``+y`` (column 0 starts at ``+x``, column ``W / 4`` at ``+y``);
+  towards ``-y``: clockwise seen from above (column 0 starts at ``+x``, column ``W / 4`` at ``-y``,
+  column ``W / 2`` at ``-x``, column ``3 W / 4`` at ``+y``);
 * pixel centres sit at half-integer coordinates: direction of pixel ``(r, c)`` is
-  ``(sin t cos p, sin t sin p, cos t)`` with ``t = (r + 0.5) pi / H``, ``p = (c + 0.5) 2 pi / W``.
+  ``(sin t cos p, -sin t sin p, cos t)`` with ``t = (r + 0.5) pi / H``, ``p = (c + 0.5) 2 pi / W``.
+
+Why clockwise: a real 360° photo or video, like Blender's and Mitsuba's ``envmap`` lat-long maps, is laid out
+so that turning right moves right in the image (for an upright viewer facing ``f``, right is ``f x z``; facing
+``+x`` that is ``-y``). The counter-clockwise layout used before (``phi`` towards ``+y``) showed every real
+panorama mirrored (issue 27); tests/pano/test_pano_orientation.py checks the layout against text drawn into a
+panorama and against Mitsuba 3's ``envmap``.
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ def pixel_to_direction(u: np.ndarray, v: np.ndarray, width: int, height: int) ->
     theta = np.asarray(v, dtype=np.float64) * (np.pi / height)
     phi = np.asarray(u, dtype=np.float64) * (2.0 * np.pi / width)
     s = np.sin(theta)
-    return np.stack([s * np.cos(phi), s * np.sin(phi), np.cos(theta)], axis=-1)
+    return np.stack([s * np.cos(phi), -s * np.sin(phi), np.cos(theta)], axis=-1)
 
 
 def direction_to_pixel(dirs: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -43,7 +51,7 @@ def direction_to_pixel(dirs: np.ndarray, width: int, height: int) -> tuple[np.nd
     if np.any(n == 0):
         raise ProbelessError("equirect.direction_to_pixel: zero-length direction")
     theta = np.arccos(np.clip(d[..., 2] / n, -1.0, 1.0))
-    phi = np.mod(np.arctan2(d[..., 1], d[..., 0]), 2.0 * np.pi)
+    phi = np.mod(np.arctan2(-d[..., 1], d[..., 0]), 2.0 * np.pi)  # clockwise seen from above (module doc)
     return phi * (width / (2.0 * np.pi)), theta * (height / np.pi)
 
 

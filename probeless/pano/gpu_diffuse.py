@@ -22,7 +22,7 @@ import numpy as np
 from probeless.errors import ProbelessError
 from probeless.gl.context import current_context
 from probeless.gl.textures import upload_texture
-from probeless.pano.equirect import check_equirect, pixel_directions
+from probeless.pano.equirect import check_equirect, pixel_directions, pixel_to_direction
 from probeless.pano.gpu_pass import GpuPasses
 
 WEIGHTS = ("subtexel", "paper", "moments")
@@ -43,11 +43,11 @@ def texel_geometry(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     dt, dp = np.pi / height, 2.0 * np.pi / width
     s2 = np.diff(t / 2 - np.sin(2 * t) / 4)  # integral of sin^2 t over each row
     sc = np.diff(np.sin(t) ** 2 / 2)  # integral of sin t cos t over each row
-    phi = (np.arange(width) + 0.5) * dp
+    # the column centres' horizontal directions (cos p, -sin p): the equirect convention's, whatever it is
+    horizon = pixel_to_direction(np.arange(width) + 0.5, np.full(width, height / 2.0), width, height)[:, :2]
     half = 2.0 * np.sin(dp / 2)  # integral of cos over a column is this * cos(centre), same for sin
     mom = np.empty((height, width, 4))
-    mom[..., 0] = s2[:, None] * half * np.cos(phi)[None]
-    mom[..., 1] = s2[:, None] * half * np.sin(phi)[None]
+    mom[..., :2] = s2[:, None, None] * half * horizon[None]
     mom[..., 2] = sc[:, None] * dp
     mom[..., 3] = np.sin(min(dt / 2 + dp / 2, np.pi / 2))  # radius <= half the row + half the column
     dirs = pixel_directions(width, height)

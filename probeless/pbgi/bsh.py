@@ -125,19 +125,26 @@ def _check_cloud(points, colors, normals) -> tuple[np.ndarray, np.ndarray, np.nd
     return out[0], out[1], out[2]
 
 
-def point_spacing(points: np.ndarray, sample: int = 50_000, seed: int = 0) -> float:
-    """Typical distance between neighbouring points: the median nearest-neighbour distance within a random sample of
-    ``sample`` points, scaled by sqrt(sample / N) as for points on surfaces (a k-d tree of the whole cloud is slow)."""
+SPACING_NEIGHBOURS = 16
+
+
+def point_spacing(points: np.ndarray, sample: int = 50_000, seed: int = 0, k: int = SPACING_NEIGHBOURS) -> float:
+    """Typical distance between neighbouring points of a surface cloud [m]: the side of the square each point stands
+    for, sqrt(area per point). For each of at most ``sample`` random points, the disk out to its ``k``-th nearest
+    other point (a k-d tree of the whole cloud) holds k points, so area per point = pi r_k^2 / k; the median over
+    the sample is returned. Regular grids, jittered grids and random points all come within ~3 % (the nearest
+    neighbour alone reads a jittered grid 35 % and random points 50 % short; a tree of the sample alone, scaled
+    back, read a 1 cm grid as 4-5 mm). 0.0 for fewer than two points."""
     from scipy.spatial import cKDTree
 
-    n = points.shape[0]
-    sub = points if n <= sample else points[np.random.default_rng(seed).choice(n, sample, replace=False)]
-    if sub.shape[0] < 2:
+    p = np.asarray(points, np.float64)
+    n = p.shape[0]
+    if n < 2:
         return 0.0
-    d, _ = cKDTree(sub).query(sub, k=2)
-    d = d[:, 1]
-    d = d[d > 0]
-    return float(np.median(d)) * math.sqrt(sub.shape[0] / n) if d.size else 0.0
+    k = min(int(k), n - 1)
+    sub = p if n <= sample else p[np.random.default_rng(seed).choice(n, sample, replace=False)]
+    d, _ = cKDTree(p, balanced_tree=False, compact_nodes=False).query(sub, k=k + 1)
+    return float(np.median(d[:, k]) * math.sqrt(math.pi / k))
 
 
 def pack_cone(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:

@@ -1,6 +1,7 @@
 """``probeless pbgi render``: one virtual object relit by a point cloud with point-based GI (paper 001, §5), as a PNG.
 
-The cloud (.ply/.pcd, colours sRGB; or an HDR PLY of ``probeless hdr expand``, radiance as stored) is the light:
+The cloud is the light: a .ply whose float or double red/green/blue are linear radiance (an HDR PLY of ``probeless hdr
+expand``) or whose uchar colours are sRGB codes (other types are refused), or a .pcd (sRGB);
 its normals are estimated when missing (:mod:`probeless.pbgi.cloud`). The object (``--object``: ``sphere`` or an
 .obj/.ply mesh, ``--radius`` its bounding-sphere radius) stands at ``--position`` (default: the cloud's centroid),
 seen from ``--look-from`` (default: ``4 x radius`` away on the side of the cloud's centroid) with ``--up`` up in the
@@ -133,20 +134,23 @@ def cmd_render(ns: argparse.Namespace) -> int:
 
 def add_pbgi_parser(sub) -> None:
     """``probeless pbgi render``."""
+    from probeless.pbgi.materials import material_help
     from probeless.pbgi.relight import MODES
 
     pbgi = sub.add_parser("pbgi", help="point-based global illumination of virtual objects (paper 001, section 5)")
     psub = pbgi.add_subparsers(dest="pbgi_command", required=True)
     c = psub.add_parser("render", help="render one object lit by a point cloud", description=__doc__,
-                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    c.add_argument("cloud", help="point cloud (.ply or .pcd; colours sRGB, or an HDR PLY)")
+                        epilog=material_help(), formatter_class=argparse.RawDescriptionHelpFormatter)
+    c.add_argument("cloud", help="point cloud (.ply: float/double colours = linear radiance, uchar = sRGB; .pcd: "
+                                 "sRGB)")
     c.add_argument("-o", "--output", required=True, metavar="OUT.png", help="sRGB 8-bit PNG")
     c.add_argument("--object", default="sphere", help="'sphere' or a mesh (.obj, .ply) (default sphere)")
     c.add_argument("--position", type=float, nargs=3, metavar=("X", "Y", "Z"), help="centre [m] (default: centroid)")
     c.add_argument("--radius", type=float, default=0.15, help="bounding-sphere radius [m] (default 0.15)")
     c.add_argument("--material", default="{type: diffuse, albedo: [0.8, 0.8, 0.8]}",
-                   help="material mapping as in the objects param, e.g. '{type: principled, base_color: "
-                        "[0.8, 0.2, 0.2], roughness: 0.3, metalness: 0}' (default diffuse white)")
+                   help="material mapping as in the objects param (types and keys: see the end of this help; "
+                        "alpha = roughness^2), e.g. '{type: principled, base_color: [0.8, 0.2, 0.2], roughness: "
+                        "0.3, metalness: 0}' (default diffuse white)")
     c.add_argument("--look-from", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="camera position [m] (default: 4 radii away towards the cloud's centroid)")
     c.add_argument("--up", type=float, nargs=3, default=(0.0, 0.0, 1.0), metavar=("X", "Y", "Z"),

@@ -128,6 +128,24 @@ class Comparison:
         corrected = {m: float(np.sqrt(max(0.0, e * e - noise * noise))) for m, e in errors.items()}
         return Rendered(images, mask, errors, corrected, float(noise), seconds)
 
+    def pbgi(self, brdf) -> tuple[np.ndarray, np.ndarray]:
+        """(image, mask) of the sphere in ``brdf`` by our PBGI alone, as :meth:`render`'s ``pbgi`` (no reference)."""
+        from probeless.pbgi.render import PbgiObject
+
+        r = self.renderers[0.2]
+        r.set_objects([PbgiObject("sphere", self.mesh, brdf)])
+        res = r.render(self.K, self.pose, self.size, self.size)
+        return res.color, res.mask
+
+    def panel_target(self) -> np.ndarray | None:
+        """The area-weighted centre of the room's panels [m, world] (a cut-up panel: its whole), None without."""
+        panels = [p for p in self.room.panels if p.in_cloud]
+        if not panels:
+            return None
+        w = np.array([p.area for p in panels])
+        centres = np.array([p.origin + 0.5 * (p.edge_u + p.edge_v) for p in panels])
+        return (w[:, None] * centres).sum(0) / w.sum()
+
     def facing(self, mask: np.ndarray, target, cos_min: float = 0.5) -> np.ndarray:
         """``mask`` pixels of the sphere whose normal points within acos(cos_min) of the direction to ``target``."""
         from probeless.pbgi.reference import pixel_rays

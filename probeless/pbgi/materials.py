@@ -71,3 +71,28 @@ def brdf_from_material(material) -> Brdf:
         raise PbgiError(f"PBGI renders opaque single-BRDF materials only (diffuse, metal, mirror, principled); "
                         f"got {type(material).__name__.lower()}: {material!r}")
     raise PbgiError(f"not a material: {material!r}")
+
+
+_RENDERED_AS = (("diffuse", Diffuse, "Lambert; 'shadowed' is ignored (PBGI shadows by itself)"),
+                ("metal", Metal, "GGX, f0 = colour"),
+                ("mirror", Mirror, f"GGX, f0 = colour, roughness {MIRROR_ROUGHNESS}"),
+                ("principled", Principled, "Disney-style: f0 = mix(0.04, base_color, metalness); maps are "
+                                           "image files read with the mesh UVs (base colour sRGB, others linear)"))
+
+
+def material_help() -> str:
+    """The materials ``probeless pbgi render --material`` takes: each type, its keys with their defaults, and the
+    roughness convention (text for ``--help``, built from the material dataclasses so it lists every key)."""
+    from dataclasses import MISSING, fields
+
+    def value(v) -> str:
+        return "[" + ", ".join(f"{x:g}" for x in v) + "]" if isinstance(v, tuple) else str(v)
+
+    lines = ["materials (--material '{type: T, key: value, ...}'; missing keys take the defaults shown):",
+             "  roughness is perceptual, 0..1: GGX alpha = roughness^2 (0: mirror-like, 1: coarsest)"]
+    for name, cls, how in _RENDERED_AS:
+        keys = ", ".join(f"{f.name} {value(f.default)}" if f.default is not MISSING else f.name for f in fields(cls))
+        lines += [f"  {name:<11} {keys}", f"  {'':<11} -> {how}"]
+    lines.append("  glass, mix  not rendered by PBGI (opaque single-BRDF materials only)")
+    lines.append("  e.g. '{type: metal, colour: [0.95, 0.64, 0.54], roughness: 0.3}'")
+    return "\n".join(lines)

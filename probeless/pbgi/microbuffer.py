@@ -41,6 +41,7 @@ MAX_BUFFER = 128 << 20  # llvmpipe's GL_MAX_SHADER_STORAGE_BLOCK_SIZE [bytes]
 _GROUP = 64
 DEPTH_MIN = 0.01  # nearest depth the texel keys resolve [m]; nearer points share the first step
 VOR_BITS = 3  # nearness-rank bits of a texel key (pbgi_common.glsl)
+RIM_DEPTH = float(__import__("os").environ.get("PBGI_RIM", "0.0"))
 WORK_CAP = 8192  # work units per classic invocation and dispatch (pbgi_classic.comp.glsl)
 
 
@@ -205,7 +206,7 @@ class MicroBufferRenderer:
             raise PbgiError(f"{self.n_nodes} nodes leave {32 - idx_bits - VOR_BITS} depth bits in a texel key "
                             f"(at least 8 needed; prune the cloud or use a larger voxel)")
         self._set_all(M=self.side, omega_stop=4.0 * self.omega, idx_bits=idx_bits, log_dmin=math.log(DEPTH_MIN),
-                      log_drange=math.log(max(2.0 * extent, 1e-3)) - math.log(DEPTH_MIN),
+                      log_drange=math.log(max(2.0 * extent, 1e-3)) - math.log(DEPTH_MIN), rim_depth=RIM_DEPTH,
                       near_center=tuple(float(v) for v in (near[0] if near else (0, 0, 0))),
                       near_radius=float(near[1]) if near else -1.0)
         ang = np.arange(256) * math.pi / 255

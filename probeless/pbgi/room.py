@@ -27,7 +27,7 @@ import numpy as np
 from probeless.errors import PbgiError
 from probeless.scene.trajectory import look_at
 
-ROOM_NAMES = ("plain", "red_wall")
+ROOM_NAMES = ("plain", "red_wall", "decals", "decals_0.5mm", "decals_1mm", "decals_5mm")  # decals: room_decals
 TEXEL = 0.02                       # default texel size of the room textures [m]
 CEILING_LIGHT = (40.0, 36.0, 30.0)  # warm lamp radiance (HDR) [linear RGB]
 RED = (0.9, 0.05, 0.05)            # red panel colour, times PANEL_GAIN
@@ -43,6 +43,7 @@ class Patch:
     edge_u: np.ndarray    # (3,) side along the image columns [m, world]
     edge_v: np.ndarray    # (3,) side along the image rows [m, world]
     radiance: np.ndarray  # (H, W, 3) float32 linear RGB radiance texture
+    in_cloud: bool = True  # False: rendered by Mitsuba only (a surface hidden behind a decal, no scanner sees it)
 
     @property
     def normal(self) -> np.ndarray:
@@ -166,6 +167,10 @@ def reference_room(name: str = "plain", *, texel: float = TEXEL) -> ReferenceRoo
     """
     if name not in ROOM_NAMES:
         raise PbgiError(f"unknown reference room {name!r}; expected one of {', '.join(ROOM_NAMES)}")
+    if name.startswith("decals"):
+        from probeless.pbgi.room_decals import decal_offset, decal_room
+
+        return decal_room(decal_offset(name), texel=texel)
     size = np.array([4.0, 3.5, 2.6])
     centre, radius = np.array([1.8, 1.9, 0.5]), 0.15
     room = ReferenceRoom(name, size, tuple(_box(size, texel)), centre, radius)
@@ -191,14 +196,15 @@ def sample_cloud(room: ReferenceRoom, spacing: float = 0.01, seed: int = 0, jitt
 
     Returns ``(points (N, 3) float64 [m, world], colors (N, 3) float32 linear radiance, normals (N, 3)
     float64 unit, emitting side = into the room)``. Colours are the patch texture at each point, looked
-    up exactly as Mitsuba's emitter does (module doc). ``jitter`` moves each point uniformly within its
+    up exactly as Mitsuba's emitter does (module doc); patches with ``in_cloud`` False (hidden behind a decal)
+    are left out. ``jitter`` moves each point uniformly within its
     cell (seeded by ``seed``). At 1 cm the default rooms give about 0.68 M points.
     """
     if not spacing > 0:
         raise PbgiError(f"cloud spacing must be > 0, got {spacing}")
     rng = np.random.default_rng(seed)
     pts, cols, nrm = [], [], []
-    for patch in room.all_patches:
+    for patch in (p for p in room.all_patches if p.in_cloud):
         nu = max(1, int(round(np.linalg.norm(patch.edge_u) / spacing)))
         nv = max(1, int(round(np.linalg.norm(patch.edge_v) / spacing)))
         u, v = np.meshgrid(np.arange(nu) + 0.5, np.arange(nv) + 0.5)

@@ -90,6 +90,10 @@ class Node:
     def on_input(self, name: str, msg: Message) -> None:
         """Handle one message from input ``name``."""
 
+    def on_param(self, key: str, value: Any) -> None:
+        """A ``dynamic`` param was changed at run time (``probeless param set``); ``self.params`` already holds
+        the new value. Raise ProbelessError or ValueError to refuse it (the old params are kept)."""
+
     def on_input_closed(self, name: str) -> None:
         """Input ``name`` reached end of stream. The node stops when all its inputs have."""
 

@@ -18,6 +18,7 @@ check`` reports it before anything starts (a node's ``setup()`` then only uses i
     pose: tuple[float, ...] = param((), length=(0, 7), finite=True)     # empty or 7 numbers
     scene: str = param(path="file", must_exist=True)                   # relative to the working folder
     calib: str = param("", path="file", must_exist=True)               # "" (the default) = not given
+    gain: float = param(1.0, min=0, dynamic=True)                      # `probeless param set` changes it live
     ids: tuple[str, ...] = param((), check=unique_ids)                 # check(value) -> error text | None
     pos: tuple[tuple[float, ...], ...] = param((), check=lambda v, p: None if len(v) == len(p.ids)
                                                else "one position per id")   # check(value, params)
@@ -49,7 +50,7 @@ def param(default: Any = _MISSING, *, min: float | None = None, max: float | Non
           choices: tuple | None = None, doc: str = "", length: int | tuple[int, ...] | None = None,
           min_length: int | None = None, max_length: int | None = None, finite: bool = False,
           path: str | None = None, must_exist: bool = False, resolve: Callable[[str], Any] | None = None,
-          check: Callable[..., str | None] | None = None) -> Any:
+          check: Callable[..., str | None] | None = None, dynamic: bool = False) -> Any:
     """A parameter field: default, documentation and what a valid value is, all checked at graph load.
 
     ``min`` / ``max``: inclusive range of a number, or of every number in a list (nested too).
@@ -61,6 +62,8 @@ def param(default: Any = _MISSING, *, min: float | None = None, max: float | Non
     default is empty); a node that looks elsewhere too passes the same ``resolve(value) -> path`` it
     opens with. ``check``: ``check(value)`` or ``check(value, params)`` returns an error text or
     None; it gets the converted value (tuples, floats) and runs after the other checks of the value.
+    ``dynamic``: ``probeless param set`` may change it while the graph runs (checked the same way); the
+    node sees the new value in ``self.params`` and, when it defines one, in ``on_param(key, value)``.
     """
     if isinstance(default, list):
         raise TypeError("use a tuple, not a list, as a parameter default")
@@ -71,7 +74,7 @@ def param(default: Any = _MISSING, *, min: float | None = None, max: float | Non
     lengths = (length,) if isinstance(length, int) else length
     meta = {"min": min, "max": max, "choices": choices, "doc": doc, "length": lengths, "min_length": min_length,
             "max_length": max_length, "finite": finite, "path": path, "must_exist": must_exist, "resolve": resolve,
-            "check": check, "check_params": check is not None and _takes_two_args(check)}
+            "check": check, "check_params": check is not None and _takes_two_args(check), "dynamic": dynamic}
     return dataclasses.field(default=default, metadata=meta)
 
 
@@ -155,7 +158,39 @@ def _type_problem(hint: Any, value: Any) -> str | None:
         return None
     if _matches(hint, value, finite=False):  # right type but for a NaN or infinity
         return f"{_finite_problem(value)} (expected {describe_type(hint)})"
-    return f"expected {describe_type(hint)}, got {type(value).__name__} {value!r}"
+    return f"expected {describe_type(hint)}, got {yaml_kind(value)} {_show_yaml(value)}"
+
+
+def yaml_kind(value: Any) -> str:
+    """What a value is called in YAML terms ('a list', 'a mapping'...), never an internal class name."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, int):
+        return "an integer"
+    if isinstance(value, float):
+        return "a number"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, Mapping):
+        return "a mapping"
+    if isinstance(value, (list, tuple)):
+        return "a list"
+    return f"a {type(value).__name__}"
+
+
+def _show_yaml(value: Any) -> str:
+    """A value as YAML flow text: [1, 2], {a: 1}, 'text', true, null."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{k}: {_show_yaml(v) or 'null'}" for k, v in value.items()) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_show_yaml(v) or "null" for v in value) + "]"
+    return repr(value)
 
 
 def _first_non_finite(value: Any, where: str = "") -> tuple[str, Any] | None:
@@ -289,6 +324,30 @@ def path_problem(value: str, kind: str = "file", resolve: Callable[[str], Any] |
         what = {"file": "is a folder, not a file", "dir": "is a file, not a folder"}[kind]
     where = "" if p.is_absolute() else f" (relative to the working folder {os.getcwd()})"
     return f"{value}: {what}{where}"
+
+
+def writable_dir_problem(value: str) -> str | None:
+    """Why folder ``value`` (created when missing, as output nodes do) cannot be written, or None.
+
+    A param check for output folders (``param(check=writable_dir_problem)``): a part of the path that is
+    a file, a read-only file system or a folder without write permission is reported by ``probeless check``.
+    """
+    if not value:
+        return None
+    p = Path(value).expanduser()
+    probe = p
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    if not probe.is_dir():
+        return f"{value}: cannot create the folder, {probe} is a file"
+    try:
+        read_only = bool(os.statvfs(probe).f_flag & os.ST_RDONLY)
+    except OSError:
+        read_only = False
+    if read_only or not os.access(probe, os.W_OK | os.X_OK):
+        why = "read-only file system" if read_only else "permission denied"
+        return f"{value}: cannot write in {probe} ({why})"
+    return None
 
 
 def _show(value: Any) -> str:

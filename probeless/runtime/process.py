@@ -21,6 +21,7 @@ import sys
 import threading
 import time
 import traceback
+from collections import deque
 from pathlib import Path
 from typing import Any, Callable
 
@@ -31,6 +32,7 @@ from probeless.errors import GraphError, ProbelessError, TransportError
 from probeless.messages.base import Message
 from probeless.messages.diagnostics import InputCounters, NodeStatus
 from probeless.messages.header import Header, Tick
+from probeless.runtime import control as tool_control
 from probeless.runtime.clock import NodeClock
 from probeless.runtime.memwatch import MemoryWatch, rss_bytes
 from probeless.runtime.node import Node, output_type
@@ -67,7 +69,7 @@ class NodeRuntime:
         self.state = "starting"
         self.zctx = zmq.Context()
         self.curve = node_curve(plan, node_id)  # None unless the graph asks for CURVE
-        self.node_cls = resolve_node(spec["node"])
+        self.node_cls = resolve_node(spec["node"], base=Path(spec["file"]).parent if spec.get("file") else None)
         self.wires = [InputWire(i["name"], i["endpoint"], i["topic"], i.get("type_name"),
                                 raw=getattr(self.node_cls, "RAW_INPUTS", False))
                       for i in spec["inputs"] if "topic" in i]
@@ -81,6 +83,16 @@ class NodeRuntime:
         self.topics = {name: out["topic"] for name, out in spec["outputs"].items()}
         self.node: Node | None = None
         self.memory, self.memory_warned = MemoryWatch(), False
+        # the tools' channel (control.py): node info, run-time params
+        self.params = None
+        self.param_updates: deque = deque()
+        self.rates: dict[tuple[str, str], float] = {}   # ("in", input) / ("out", topic) -> messages per second
+        self.last_counts: tuple[float, dict] | None = None
+        self.last_timings: list[dict] = []
+        self.memory_last = 0
+
+    def uptime_s(self) -> float:
+        return time.monotonic() - self.started_at
 
     def _policy(self, name: str) -> tuple[str, int, int]:
         """(policy, queue_size, max_bytes) of an input; ``max_bytes`` from the plan, else the default bound."""
@@ -137,8 +149,8 @@ class NodeRuntime:
     def run(self) -> int:
         ok = False
         try:
-            params = load_params(self.node_cls.Params, self.spec.get("params"), node_id=self.node_id,
-                                 file=self.spec.get("file"), line=self.spec.get("line"))
+            params = self.params = load_params(self.node_cls.Params, self.spec.get("params"), node_id=self.node_id,
+                                               file=self.spec.get("file"), line=self.spec.get("line"))
             self.publisher = Publisher(self.zctx, self.spec["endpoint"], self.node_id, self.clock.now_ns,
                                        curve=self.curve)
             self.node = self.node_cls(self, params)
@@ -169,8 +181,11 @@ class NodeRuntime:
 
     def _start_receiver(self) -> None:
         control = (self.control_endpoint, self.node_id) if self.control_endpoint else None
+        tools = ((self.spec["ctl_endpoint"], lambda req, ident: tool_control.handle(self, req, ident))
+                 if self.spec.get("ctl_endpoint") else None)
         self.receiver = Receiver(self.zctx, self.wires, self.queues, self.cond, self.wake_endpoint,
-                                 control=control, status=self._status, node_id=self.node_id, curve=self.curve)
+                                 control=control, status=self._status, node_id=self.node_id, curve=self.curve,
+                                 tools=tools)
         self.wake_tx = self.zctx.socket(zmq.PAIR)
         self.wake_tx.connect(self.wake_endpoint)
         self.receiver.start()
@@ -222,6 +237,8 @@ class NodeRuntime:
 
     def _loop(self) -> None:
         while not self.stop_requested:
+            if self.param_updates:
+                tool_control.apply_updates(self)
             for timer, missed in self.wall_timers.pop_due(time.monotonic_ns()):
                 timer.fire(missed)
             for timer, missed in self.timers.pop_due(self.clock.monotonic_ns()):
@@ -291,16 +308,31 @@ class NodeRuntime:
                                          q.queued_bytes, q.restarts)
                            for q in self.queues.values() if q.name != CLOCK_INPUT)
         self.publisher.poll_subscriptions(0)
-        rss = rss_bytes()
+        self._update_rates()
+        rss = self.memory_last = rss_bytes()
         self.memory.sample(rss)
         warnings = (self.memory.describe(),) if self.memory.growing else ()
         if warnings and not self.memory_warned:
             self.memory_warned = True
             self.log.warning("%s", warnings[0])
+        timings = self.timings.report()
+        self.last_timings = [{"name": t.name, "count": t.count, "p50_ms": t.p50_ms, "max_ms": t.max_ms}
+                             for t in timings if t.count]
         status = NodeStatus(Header(self.now_ns(), self.node_id), self.node_id, self.state,
-                            time.monotonic() - self.started_at, self.timings.report(), inputs,
+                            time.monotonic() - self.started_at, timings, inputs,
                             tuple(f"{t}={n}" for t, n in self.publisher.published.items()), rss, warnings)
         self.publisher.publish(f"{self.node_id}/diagnostics", status, lambda: self.stop_requested)
+
+    def _update_rates(self) -> None:
+        """Messages per second of each input and output since the last diagnostics (for ``node info``)."""
+        now = time.monotonic()
+        with self.cond:
+            counts = {("in", q.name): q.received for q in self.queues.values()}
+        counts.update({("out", t): n for t, n in self.publisher.published.items()})
+        if self.last_counts is not None and now > self.last_counts[0]:
+            t0, before = self.last_counts
+            self.rates = {k: (n - before.get(k, 0)) / (now - t0) for k, n in counts.items()}
+        self.last_counts = (now, counts)
 
     def _input_topic(self, name: str) -> str:
         return next(w.topic for w in self.wires if w.name == name)

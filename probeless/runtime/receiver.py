@@ -24,6 +24,7 @@ from probeless.runtime.queues import InputQueue
 from probeless.runtime.security import NodeCurve
 
 log = logging.getLogger("probeless.receiver")
+TOOL_PUBLISHER_PREFIX = "@tool/"   # publisher ids of tools (``topic pub``)
 BLOCK_RECV_HWM = 4
 DROP_RECV_HWM = 128   # lossy inputs: past this (plus the publisher's SEND_HWM) the publisher drops for us
 EOS_MARK = object()
@@ -82,7 +83,8 @@ class Receiver(threading.Thread):
     def __init__(self, zctx: zmq.Context, wires: list[InputWire], queues: dict[str, InputQueue],
                  cond: threading.Condition, wake_endpoint: str, max_bytes: int = wire.MAX_MESSAGE_BYTES,
                  control: tuple[str, str] | None = None, status: Callable[[], dict] | None = None,
-                 node_id: str = "", curve: NodeCurve | None = None):
+                 node_id: str = "", curve: NodeCurve | None = None,
+                 tools: tuple[str, Callable[[Any, bytes], dict | None]] | None = None):
         super().__init__(name="probeless-receiver", daemon=True)
         self.cond, self.queues, self.max_bytes = cond, queues, max_bytes
         self.stopping = False
@@ -92,6 +94,7 @@ class Receiver(threading.Thread):
         self.quiet = threading.Event()     # launcher confirmed quiescence (lockstep)
         self.status = status or (lambda: {})
         self.outbox: deque[list[bytes]] = deque()
+        self.tool_outbox: deque[tuple[bytes, dict]] = deque()
         self.wake = zctx.socket(zmq.PAIR)
         self.wake.bind(wake_endpoint)
         self.control = None
@@ -100,6 +103,12 @@ class Receiver(threading.Thread):
             self.control.setsockopt(zmq.IDENTITY, control[1].encode())
             self.control.setsockopt(zmq.LINGER, 0)
             self.control.connect(control[0])
+        self.tools, self.tool_handler = None, None
+        if tools is not None:  # the tools' channel (control.py): introspection, params, extra publishers
+            self.tools = zctx.socket(zmq.ROUTER)
+            self.tools.setsockopt(zmq.LINGER, 0)
+            self.tools.bind(tools[0])
+            self.tool_handler = tools[1]
         self.socks: dict[zmq.Socket, InputWire] = {}
         for w in wires:
             s = zctx.socket(zmq.SUB)
@@ -122,11 +131,18 @@ class Receiver(threading.Thread):
         self.outbox.append(list(parts))
         wake_tx.send(b"")
 
+    def reply_tool(self, ident: bytes, reply: dict, wake_tx: zmq.Socket) -> None:
+        """Queue a late reply to a tool request (called from the node thread)."""
+        self.tool_outbox.append((ident, reply))
+        wake_tx.send(b"")
+
     def run(self) -> None:
         poller = zmq.Poller()
         poller.register(self.wake, zmq.POLLIN)
         if self.control is not None:
             poller.register(self.control, zmq.POLLIN)
+        if self.tools is not None:
+            poller.register(self.tools, zmq.POLLIN)
         for s in self.socks:
             poller.register(s, zmq.POLLIN)
         while not self.stopping:
@@ -137,9 +153,12 @@ class Receiver(threading.Thread):
                     self._retry_pending(poller)
                 elif sock is self.control:
                     self._on_control(self.control.recv_multipart())
+                elif sock is self.tools:
+                    self._on_tool(self.tools.recv_multipart())
                 elif sock not in self.pending:
                     self._receive(sock, poller)
-        for s in list(self.socks) + [self.wake] + ([self.control] if self.control is not None else []):
+        extra = [s for s in (self.control, self.tools) if s is not None]
+        for s in list(self.socks) + [self.wake] + extra:
             s.close(0)
 
     def _flush_outbox(self) -> None:
@@ -147,6 +166,48 @@ class Receiver(threading.Thread):
             parts = self.outbox.popleft()
             if self.control is not None:
                 self.control.send_multipart(parts)
+        while self.tool_outbox:
+            ident, reply = self.tool_outbox.popleft()
+            self._reply_tool(ident, reply)
+
+    def _reply_tool(self, ident: bytes, reply: dict) -> None:
+        try:
+            self.tools.send_multipart([ident, b"", msgpack.packb(reply, default=str)])
+        except zmq.ZMQError:
+            pass  # the tool went away
+
+    def _on_tool(self, parts: list[bytes]) -> None:
+        """One tool request ``[identity, b"", msgpack]``; replies now unless the handler defers it."""
+        ident = parts[0]
+        try:
+            req = msgpack.unpackb(parts[-1], raw=False)
+        except Exception:
+            self._reply_tool(ident, {"ok": False, "error": "malformed request"})
+            return
+        if isinstance(req, dict) and req.get("op") in ("connect", "disconnect"):
+            reply = self._connect_tool(req)
+        else:
+            try:
+                reply = self.tool_handler(req, ident)
+            except Exception as exc:  # a tool must never take the node down
+                reply = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+        if reply is not None:
+            self._reply_tool(ident, reply)
+
+    def _connect_tool(self, req: dict) -> dict:
+        """Inputs reading ``topic`` also read a tool's publisher (``topic pub``), or stop doing so."""
+        names = []
+        for sock, w in self.socks.items():
+            if w.topic != req.get("topic"):
+                continue
+            endpoint = str(req["lossless"] if self.queues[w.name].policy == "block" else req["lossy"])
+            try:
+                (sock.connect if req["op"] == "connect" else sock.disconnect)(endpoint)
+            except zmq.ZMQError as exc:
+                if req["op"] == "connect":
+                    return {"ok": False, "error": f"cannot connect input {w.name!r} to {endpoint}: {exc}"}
+            names.append(w.name)
+        return {"ok": True, "inputs": names}
 
     def _on_control(self, parts: list[bytes]) -> None:
         kind = parts[0]
@@ -187,8 +248,9 @@ class Receiver(threading.Thread):
         if w.raw:
             raw = peek_raw(w.topic, frames, time.time_ns())
             return raw, raw.seq, nbytes
-        _, _, msg = wire.decode(frames, expected=w.type_name, max_bytes=self.max_bytes)
-        return msg, msg.header.seq, nbytes
+        _, env, msg = wire.decode(frames, expected=w.type_name, max_bytes=self.max_bytes)
+        from_tool = env.publisher.startswith(TOOL_PUBLISHER_PREFIX)  # `topic pub`: its own seq, not counted
+        return msg, None if from_tool else msg.header.seq, nbytes
 
     def _push(self, name: str, item: tuple) -> bool:
         with self.cond:

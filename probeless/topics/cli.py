@@ -17,7 +17,7 @@ from probeless.topics.signals import cli_signals
 
 
 def _graph(ns: argparse.Namespace) -> RunningGraph:
-    return select_graph(ns.graph_dir)
+    return select_graph(getattr(ns, "graph", None))
 
 
 def _quiet_broken_pipe() -> int:
@@ -83,14 +83,11 @@ def _positive_float(text: str) -> float:
 
 def add_topic_parser(sub: Any) -> argparse.ArgumentParser:
     """Add ``topic {list,echo,hz,info}`` to an argparse subparsers object; each sets ``func``."""
-    common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--graph-dir", metavar="RUN_DIR",
-                        help="the run directory of the graph to inspect (default: the most recently "
-                             "started running graph under $PROBELESS_RUN_DIR or $TMPDIR/probeless-<uid>)")
-    p = sub.add_parser("topic", help="inspect the topics of a running graph: list, echo, hz, info",
+    common = graph_option_parser()
+    p = sub.add_parser("topic", help="inspect the topics of a running graph: list, echo, hz, info, pub",
                        description="Inspect the topics of a running graph. The tools never slow the graph "
                                    "down: they drop (and count) what they cannot keep up with.")
-    tsub = p.add_subparsers(dest="topic_command", required=True, metavar="{list,echo,hz,info}")
+    tsub = p.add_subparsers(dest="topic_command", required=True, metavar="{list,echo,hz,info,pub}")
 
     c = tsub.add_parser("list", parents=[common], help="topics with type, publisher and subscriber count")
     c.add_argument("-v", "--verbose", action="store_true", help="also show endpoints and each subscriber's input")
@@ -117,7 +114,103 @@ def add_topic_parser(sub: Any) -> argparse.ArgumentParser:
     c.add_argument("--timeout", type=_positive_float, default=2.5,
                    help="seconds to wait for the nodes' diagnostics (default 2.5)")
     c.set_defaults(func=cmd_topic_info)
+
+    c = tsub.add_parser("pub", parents=[common], help="publish messages on a topic of the running graph")
+    c.add_argument("topic")
+    c.add_argument("type", metavar="TYPE", help="message type, e.g. core/Tick (must match the topic's)")
+    c.add_argument("yaml", metavar="YAML", help="the fields as YAML, e.g. '{period_ns: 1000, missed: 0}'")
+    c.add_argument("--rate", type=_positive_float, metavar="HZ", help="publish repeatedly at HZ (until Ctrl-C "
+                                                                      "or -n); default: once")
+    c.add_argument("-n", "--count", type=_positive_int, help="stop after N messages")
+    c.set_defaults(func=cmd_topic_pub)
     return p
+
+
+def yaml_value(text: str, what: str) -> Any:
+    """A command-line YAML value (``0.5``, ``[1, 2]``, ``{a: 1}``); ProbelessError naming ``what`` when invalid."""
+    import yaml
+
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ProbelessError(f"{what} is not valid YAML: {str(exc).splitlines()[0]}") from None
+
+
+def graph_option_parser() -> argparse.ArgumentParser:
+    """The ``--graph RUN_ID|GRAPH_FILE`` option of every tool that attaches to a running graph."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--graph", "--graph-dir", dest="graph", metavar="RUN_ID|GRAPH_FILE",
+                        help="the running graph: its run id (`probeless runs`), run directory or graph file "
+                             "(default: the only running graph; with several, the tool asks)")
+    return common
+
+
+def cmd_topic_pub(ns: argparse.Namespace) -> int:
+    from probeless.topics.pub import publish
+
+    doc = yaml_value(ns.yaml, "the message YAML")
+    with cli_signals():
+        publish(_graph(ns), ns.topic, ns.type, doc, rate_hz=ns.rate, count=ns.count)
+    return 0
+
+
+def cmd_node(ns: argparse.Namespace) -> int:
+    from probeless.topics import nodes
+
+    graph = _graph(ns)
+    if ns.node_command == "list":
+        nodes.list_nodes(graph)
+    else:
+        nodes.print_node_info(nodes.node_info(graph, ns.node))
+    return 0
+
+
+def cmd_param(ns: argparse.Namespace) -> int:
+    from probeless.topics import nodes
+
+    graph = _graph(ns)
+    if ns.param_command == "get":
+        got = nodes.param_get(graph, ns.node, ns.key)
+        for k, v in got["params"].items():
+            print(f"{k}: {v!r}{'  (dynamic)' if k in got['dynamic'] and ns.key is None else ''}")
+        return 0
+    value = nodes.param_set(graph, ns.node, ns.key, yaml_value(ns.value, f"the value of {ns.key}"))
+    print(f"{ns.node}: {ns.key} = {value!r}")
+    return 0
+
+
+def cmd_runs(ns: argparse.Namespace) -> int:
+    from probeless.topics.nodes import print_runs
+
+    print_runs()
+    return 0
+
+
+def add_node_parsers(sub: Any) -> None:
+    """Add ``node {list,info}``, ``param {get,set}`` and ``runs`` (see probeless.topics.nodes)."""
+    common = graph_option_parser()
+    p = sub.add_parser("node", help="the nodes of a running graph: pid, state, rates, queues, params")
+    nsub = p.add_subparsers(dest="node_command", required=True)
+    c = nsub.add_parser("list", parents=[common], help="one line per node: pid, state, output rate, queues")
+    c.set_defaults(func=cmd_node)
+    c = nsub.add_parser("info", parents=[common], help="everything one node reports: inputs, outputs, params")
+    c.add_argument("node", metavar="NODE")
+    c.set_defaults(func=cmd_node)
+
+    p = sub.add_parser("param", help="read and set the params of a running node (set: params declared dynamic)")
+    psub = p.add_subparsers(dest="param_command", required=True)
+    c = psub.add_parser("get", parents=[common], help="the current value of a param (all params without KEY)")
+    c.add_argument("node", metavar="NODE")
+    c.add_argument("key", metavar="KEY", nargs="?")
+    c.set_defaults(func=cmd_param)
+    c = psub.add_parser("set", parents=[common], help="set a dynamic param, checked like `probeless check`")
+    c.add_argument("node", metavar="NODE")
+    c.add_argument("key", metavar="KEY")
+    c.add_argument("value", metavar="VALUE", help="a YAML value: 0.5, true, [1, 2], text")
+    c.set_defaults(func=cmd_param)
+
+    c = sub.add_parser("runs", help="the running graphs and their run ids (what --graph takes)")
+    c.set_defaults(func=cmd_runs)
 
 
 def topic_main(argv: list[str] | None = None) -> int:

@@ -88,7 +88,7 @@ def _check_common(res, ldr, window):
 @pytest.mark.parametrize("method", ["landis-pc", "banterle-pc"])
 def test_operator_per_point_needs_no_gl_or_photo(room, method):
     p, _, ldr, window = room
-    res = expand_cloud(p, ldr, None, method=method)
+    res = expand_cloud(p, ldr, None, method=method, max_lum=10.0)
     _check_common(res, ldr, window)
     assert (luminance(res.radiance[window]) > 1.0).all()
     assert res.report["views"] == [] and res.report["alpha"] is None and res.views == []
@@ -117,7 +117,7 @@ def test_view_methods(room, photo, method):
 def test_explicit_positions(room, photo):
     p, _, ldr, window = room
     views = np.array([[[0.5, 0.0, 1.6], [2.0, 0.0, 1.6]]])
-    res = expand_cloud(p, ldr, None, method="landis", views=views, size=64)
+    res = expand_cloud(p, ldr, None, method="landis", views=views, size=64, max_lum=10.0)
     assert res.report["views"][0]["position"] == [0.5, 0.0, 1.6]
     _check_common(res, ldr, window)
 
@@ -129,7 +129,9 @@ def test_bad_arguments(room):
     with pytest.raises(HdrError, match="needs the HDR photo"):
         expand_cloud(p, ldr, None, method="pmatch-rgb")
     with pytest.raises(HdrError, match="ldr_colors"):
-        expand_cloud(p, ldr * 3, None, method="landis-pc")
+        expand_cloud(p, ldr * 3, None, method="landis-pc", max_lum=10.0)
+    with pytest.raises(HdrError, match="max_lum"):
+        expand_cloud(p, ldr, None, method="landis-pc")
 
 
 @pytest.mark.slow

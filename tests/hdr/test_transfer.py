@@ -107,7 +107,7 @@ def test_apply_transfer_bad_input():
 def test_landis_pc_by_formula():
     """Landis (threshold 0.5, alpha 2, max 10): Lw = Ld (1 - k + 10 k), k = ((Ld - 0.5) / 0.5)^2."""
     pts = np.array([[0.3, 0.3, 0.3], [0.75, 0.75, 0.75], [1, 1, 1], [0, 0, 0]], np.float32)
-    out = transfer.expand_points(pts, "landis")
+    out = transfer.expand_points(pts, "landis", max_lum=10.0)
     k = ((0.75 - 0.5) / 0.5) ** 2
     np.testing.assert_allclose(out[:, 0], [0.3, 0.75 * (1 - k + 10 * k), 10.0, 0.0], rtol=1e-5)
     np.testing.assert_allclose(out[:, 0], out[:, 1])
@@ -115,7 +115,8 @@ def test_landis_pc_by_formula():
 
 def test_banterle_pc_expands_white_to_max_and_keeps_black():
     pts = np.array([[0.1, 0.1, 0.1]] * 20 + [[1, 1, 1]] + [[0, 0, 0]], np.float32)
-    out = transfer.expand_points(pts, "banterle")
+    pos = np.arange(len(pts), dtype=np.float32)[:, None] * np.array([[1.0, 0.0, 0.0]], np.float32)
+    out = transfer.expand_points(pts, "banterle", max_lum=10.0, points=pos)
     assert out.shape == pts.shape
     np.testing.assert_allclose(out[20], 10.0, rtol=1e-5)  # E = 1 at the over-exposed point
     np.testing.assert_array_equal(out[21], 0.0)
@@ -128,9 +129,9 @@ def test_expand_with_operator_view_and_checks():
     np.testing.assert_allclose(out[1:3, 2:4], 20.0, rtol=1e-5)
     np.testing.assert_array_equal(out[0], 0.0)
     with pytest.raises(HdrError, match="unknown expansion operator"):
-        transfer.expand_with_operator(view, "paper")
+        transfer.expand_with_operator(view, "paper", max_lum=10.0)
     with pytest.raises(HdrError, match="0..1"):
-        transfer.expand_with_operator(view * 2, "landis")
+        transfer.expand_with_operator(view * 2, "landis", max_lum=10.0)
 
 
 def _cluster(indices):

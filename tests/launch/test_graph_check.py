@@ -157,7 +157,7 @@ def test_check_reports_every_param_rule_with_location(monkeypatch, tmp_path, cap
     """Rules that used to run in nodes' setup(): a check= rule across params, a path, a [2H, H] size."""
     monkeypatch.chdir(GRAPHS.parent.parent)
     g = tmp_path / "g.yaml"
-    g.write_text("""nodes:
+    g.write_text(f"""nodes:
   - id: envmap
     node: baseline_envmap
     params:
@@ -165,7 +165,7 @@ def test_check_reports_every_param_rule_with_location(monkeypatch, tmp_path, cap
       object_positions: [[0, 0, 1]]
   - id: camera
     node: fisheye_player
-    params: {path: launch/scenes, calibration: no_calib.yaml}
+    params: {{path: {GRAPHS.parent.parent}/launch/scenes, calibration: no_calib.yaml}}
   - id: diffuse
     node: diffuse_map
     params:

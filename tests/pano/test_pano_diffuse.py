@@ -23,7 +23,7 @@ def test_row_solid_angle_matches_numeric_integral():
 def test_direction_convention_and_round_trip():
     w, h = 64, 32
     d = equirect.pixel_to_direction(np.array([0.0, w / 4, w / 2, 5.0]), np.array([h / 2, h / 2, h / 2, 0.0]), w, h)
-    np.testing.assert_allclose(d[:3], [[1, 0, 0], [0, 1, 0], [-1, 0, 0]], atol=1e-12)
+    np.testing.assert_allclose(d[:3], [[1, 0, 0], [0, -1, 0], [-1, 0, 0]], atol=1e-12)  # clockwise from above
     np.testing.assert_allclose(d[3], [0, 0, 1], atol=1e-12)  # row 0 = zenith
     dirs = equirect.pixel_directions(w, h)
     u, v = equirect.direction_to_pixel(dirs, w, h)

@@ -109,7 +109,7 @@ def test_view_equirect_wraps_across_the_seam_and_ignores_translation():
     pose[:3, :3] = look_rotation(0.0, 0.0)     # looking at phi = 0, the seam in the middle of the view
     view = view_equirect(frame, pose, 90.0, 64, 32)
     rays = pixel_rays(intrinsics(90.0, 64, 32), pose[:3, :3], 64, 32)
-    ray_phi = np.arctan2(rays[..., 1], rays[..., 0])
+    ray_phi = np.arctan2(-rays[..., 1], rays[..., 0])  # the column longitude: from +x towards -y (pano.equirect)
     # linear interpolation over a texel step d errs by <= d^2 / 8; cv2 rounds positions to 1/32 texel
     # (<= d / 64 here); reading a clamped edge column instead of wrapping would err by up to d
     d = 2 * math.pi / w

@@ -1,14 +1,26 @@
 #version 430
-// Image-based shading: kd * diffuse + ks * glossy reflection + kt * Fresnel-weighted refraction.
-// Cubemaps hold linear radiance and are sampled with the world direction (messages/lighting.py).
+// Image-based shading: kd * diffuse + specular GGX lobe (Schlick f0 -> f90, energy-compensated) + kt * refraction.
+// Cubemaps hold linear radiance and are sampled with the world direction (messages/lighting.py); env has its full
+// mip chain (trilinear). Roughness is perceptual (GGX alpha = roughness^2): see ibl_specular.glsl.
 const float PI = 3.14159265358979;
-uniform samplerCube env;        // mirror radiance, with mip chain
-uniform samplerCube glossy;     // specular lobe source (env or a prefiltered level)
-uniform float glossy_lod;       // mip level to read the specular lobe at
+uniform samplerCube env;        // linear radiance, full mip chain
+uniform float env_size;         // face size of env's level 0 [texels]
+uniform samplerCube chain;      // GGX-prefiltered chain of env (probeless.ibl.prefilter)
+uniform float chain_max_level;  // its last level (roughness 1)
+uniform bool split_sum;         // the lobe from the chain x DFG (else importance-sampled from env)
+uniform int sum_level;          // >= 0: the lobe as an exact sum over the texels of this mip level of env
+uniform sampler2D dfg;          // (A, B) of probeless.ibl.dfg, s = n.v, t = roughness
+uniform samplerCube glossy;     // an explicit prefiltered level (use_levels), read along R at level 0
+uniform bool use_levels;        // the lobe comes from the given prefiltered levels (no Fresnel, no masking)
 uniform vec3 sh_irr[25];        // SH radiance coefficients times the cosine-lobe A_l (irradiance)
 uniform vec3 camera_position;
 uniform vec3 kd;
-uniform vec3 ks;
+uniform vec3 ks;                // specular reflectance at normal incidence (Schlick f0)
+uniform vec3 f90;               // specular reflectance at grazing incidence (the layer's weight)
+uniform float roughness;        // perceptual roughness of the specular lobe
+uniform bool energy_compensation;  // Filament's multiple-scattering factor on the specular lobe
+uniform int spec_samples;       // lookups per pixel of the specular lobe
+uniform int refr_samples;       // lookups per pixel of the refraction
 uniform vec3 kt;
 uniform float ior;
 uniform bool use_prt;
@@ -56,23 +68,40 @@ vec3 sh_irradiance(vec3 n) {
 }
 
 #include "fresnel.glsl"
+#include "ibl_specular.glsl"
 
 void main() {
     vec3 I = normalize(v_world - camera_position);
     vec3 N = normalize(v_normal);
     if (dot(N, I) > 0.0) N = -N;  // two-sided: open meshes show their inside
-    vec3 R = reflect(I, N);
+    vec3 dNdx = dFdx(N), dNdy = dFdy(N), dIdx = dFdx(I), dIdy = dFdy(I);
     vec3 color = vec3(0.0);
     if (any(greaterThan(kd, vec3(0.0))))
         color += kd * (use_prt ? max(v_prt, vec3(0.0)) : sh_irradiance(N)) / PI;
-    if (any(greaterThan(ks, vec3(0.0))))
-        color += ks * textureLod(glossy, R, glossy_lod).rgb;
-    if (any(greaterThan(kt, vec3(0.0)))) {
-        float F = fresnel(clamp(-dot(I, N), 0.0, 1.0), ior);
-        vec3 T = refract(I, N, 1.0 / ior);
-        vec3 through = F < 1.0 ? textureLod(env, T, 0.0).rgb : vec3(0.0);
-        color += kt * ((1.0 - F) * through + F * textureLod(env, R, 0.0).rgb);
+    if (any(greaterThan(ks, vec3(0.0))) || any(greaterThan(f90, vec3(0.0)))) {
+        if (use_levels) {
+            color += ks * textureLod(glossy, reflect(I, N), 0.0).rgb;
+        } else if (sum_level >= 0) {
+            vec3 spec = ibl_specular_sum(env, env_size, sum_level, N, I, roughness, ks, f90);
+            if (energy_compensation) {
+                vec2 ab = texture(dfg, vec2(clamp(dot(N, -I), 0.0, 1.0), roughness)).rg;
+                spec *= ibl_energy_compensation(ab, ks);
+            }
+            color += spec;
+        } else if (split_sum) {
+            color += ibl_specular_split(chain, chain_max_level, env_size, dfg, N, I, dNdx, dNdy, dIdx, dIdy, roughness,
+                                        ks, f90, spec_samples, energy_compensation);
+        } else {
+            vec3 spec = ibl_specular(env, env_size, N, I, dNdx, dNdy, dIdx, dIdy, roughness, ks, f90, spec_samples);
+            if (energy_compensation) {
+                vec2 ab = texture(dfg, vec2(clamp(dot(N, -I), 0.0, 1.0), roughness)).rg;
+                spec *= ibl_energy_compensation(ab, ks);
+            }
+            color += spec;
+        }
     }
+    if (any(greaterThan(kt, vec3(0.0))))
+        color += kt * ibl_refraction(env, env_size, N, I, dNdx, dNdy, dIdx, dIdy, ior, refr_samples);
     frag_color = vec4(color * exposure, 1.0);
     frag_depth = v_depth;
 }

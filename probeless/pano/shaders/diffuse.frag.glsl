@@ -16,17 +16,19 @@ out vec4 diffuse;
 
 const float PI = 3.14159265358979;
 
+#include "equirect.glsl"
+
 // (sum of w L, sum of w) over the SUB x SUB sub-texels of input texel p
 vec4 straddling(ivec2 p, ivec2 size, vec3 n, vec3 texel) {
     float dt = PI / float(size.y), dp = 2.0 * PI / float(size.x);
     vec4 acc = vec4(0.0);
     for (int k = 0; k < SUB; ++k) {
         float t = (float(p.y) + (float(k) + 0.5) / float(SUB)) * dt;
-        float st = sin(t), ct = cos(t);
+        float st = sin(t);
         float omega = (dp / float(SUB)) * 2.0 * st * sin(dt / (2.0 * float(SUB)));  // cos t0 - cos t1
         for (int l = 0; l < SUB; ++l) {
             float ph = (float(p.x) + (float(l) + 0.5) / float(SUB)) * dp;
-            float w = omega * max(dot(n, vec3(st * cos(ph), st * sin(ph), ct)), 0.0);
+            float w = omega * max(dot(n, equirect_direction(t, ph)), 0.0);
 #if MOMENTS
             texel = texelFetch(fine, p * SUB + ivec2(l, k), 0).rgb;
 #endif

@@ -11,6 +11,8 @@ layout(location = 2) out vec4 mz;
 
 const float PI = 3.14159265358979;
 
+#include "equirect.glsl"
+
 void main() {
     vec2 lo = floor(gl_FragCoord.xy) * scale;
     vec2 hi = lo + scale;
@@ -27,9 +29,10 @@ void main() {
             float ph = (float(x) + 0.5) * dp;
             float g = wy * (min(hi.x, float(x + 1)) - max(lo.x, float(x)));
             vec4 l = g * vec4(texelFetch(src, ivec2(x, y), 0).rgb, 1.0);
-            ax += l * (st * cos(ph));
-            ay += l * (st * sin(ph));
-            az += l * cos(t);
+            vec3 w = equirect_direction(t, ph);
+            ax += l * w.x;
+            ay += l * w.y;
+            az += l * w.z;
         }
     }
     mx = ax;

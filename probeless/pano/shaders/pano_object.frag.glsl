@@ -2,8 +2,8 @@
 // Image-based shading from one equirectangular HDR frame (paper 002):
 // kd * diffuse_map(N) + ks * (mirror or glossy ring sampling around R) + kt * Fresnel-weighted refraction.
 // Equirect convention (probeless.pano.equirect): z up, v = theta / pi (row 0 = zenith),
-// u = phi / 2 pi with phi from +x towards +y. Every lookup uses textureLod with an explicit level,
-// so the jump of u at the seam never reaches a derivative.
+// u = phi / 2 pi with phi from +x towards -y (clockwise seen from above). Every lookup uses textureLod
+// with an explicit level, so the jump of u at the seam never reaches a derivative.
 #ifndef MAX_RING_SAMPLES
 #define MAX_RING_SAMPLES 64
 #endif

@@ -32,6 +32,7 @@ uniform float omega_stop;    // splat when the node's solid angle <= this (4 x 2
 uniform uint idx_bits;       // low bits of a texel: node slot
 uniform float log_dmin;      // depth quantisation: log of the nearest depth [log m]
 uniform float log_drange;    // log(dmax) - log(dmin)
+uniform float rim_depth;     // a splat's depth is pushed back by rim_depth * t [log m] at nearness rank t (texel_key)
 uniform vec3 near_center;    // near_field: nodes wholly farther than near_radius from here are culled [m, world]
 uniform float near_radius;   // <= 0: no near-field culling [m]
 uniform vec2 cone_cs[256];   // (cos, sin) of the packed cone half-angles k pi / 255
@@ -92,7 +93,7 @@ mat3 mb_frame(vec3 n) {
 // The key's high bits: log depth d [m] and the nearness rank t in [0, 1] (0: the texel's ray meets the node's centre,
 // 1: its rim), above the node slot's idx_bits.
 uint texel_key(float d, float t, uint i) {
-    float u = clamp((log(max(d, 1e-9)) - log_dmin) / log_drange, 0.0, 1.0);
+    float u = clamp((log(max(d, 1e-9)) + rim_depth * t - log_dmin) / log_drange, 0.0, 1.0);
     uint rank = min(uint(t * float(1u << VOR_BITS)), (1u << VOR_BITS) - 1u);
     uint depth = uint(u * float((1u << (32u - idx_bits - VOR_BITS)) - 1u));
     return (depth << (idx_bits + VOR_BITS)) | (rank << idx_bits) | i;

@@ -1,0 +1,1 @@
+"""Example node package for probeless (see ../README.md)."""

@@ -1,0 +1,67 @@
+"""The GGX-prefiltered radiance chain of a cubemap, on the GPU (split-sum radiance, Karis 2013).
+
+Level k >= 1 of the chain (face size S >> k) holds the map prefiltered for perceptual roughness
+``r_k = 2^(-(levels - 1 - k) / 2)`` (GGX alpha = r² doubles from level to level: 1/16, 1/8, 1/4, 1/2, 1 for six
+levels; level 0 is the map itself), so a lookup at ``lod = levels - 1 + 2 log2(roughness)`` with trilinear filtering
+blends the two levels that bracket the roughness. Rougher lobes than ``r_1`` read the chain; smoother ones are
+importance-sampled from the map itself (``ibl_specular.glsl``), where blending with a mirror would be wrong. Each level is computed by
+``ggx_prefilter.comp.glsl`` from the map's box mip chain by filtered importance sampling (``SAMPLES`` per texel).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from probeless.errors import ProbelessError
+from probeless.gl.programs import load_program
+from probeless.gl.textures import FILTERS, GL_RGBA32F, upload_cube
+
+SHADERS = Path(__file__).with_name("shaders")
+MAX_LEVELS = 6            # levels incl. the base (256 -> 8 texels a face at the roughest) [count]
+SAMPLES = (0, 256, 512, 1024, 1024, 1024)  # GGX samples per texel of each level [count]
+
+
+def chain_levels(size: int) -> int:
+    """Levels of the chain of an S = ``size`` cubemap: MAX_LEVELS, fewer when S is too small to halve that often."""
+    return max(2, min(MAX_LEVELS, int(np.log2(max(int(size), 1))) + 1))
+
+
+def level_roughness(levels: int) -> np.ndarray:
+    """(levels,) perceptual roughness each level is prefiltered for (level 0: 0, the map)."""
+    k = np.arange(levels, dtype=np.float64)
+    return np.where(k == 0, 0.0, 2.0 ** (-(levels - 1 - k) / 2))
+
+
+class GgxPrefilter:
+    """Builds the chain of cubemap faces on a GL context (the program is compiled once)."""
+
+    def __init__(self, ctx: moderngl.Context):
+        self.ctx = ctx
+        self.prog = load_program(ctx, "ggx_prefilter", shader_dir=SHADERS)
+
+    def chain(self, faces: np.ndarray) -> tuple[moderngl.TextureCube, int]:
+        """(RGBA32F cube texture with the chain in its mip levels, trilinear; number of levels) of faces
+        (6, S, S, 3) linear radiance."""
+        f = np.asarray(faces, np.float32)
+        if f.ndim != 4 or f.shape[0] != 6 or f.shape[1] != f.shape[2] or f.shape[3] < 3:
+            raise ProbelessError(f"GGX prefilter: expected (6, S, S, 3) faces, got {f.shape}")
+        size, levels = f.shape[1], chain_levels(f.shape[1])
+        source = upload_cube(self.ctx, f[..., :3])  # box mips: what the samples read
+        rgba = np.concatenate([f[..., :3], np.ones(f.shape[:3] + (1,), np.float32)], axis=-1)
+        chain = self.ctx.texture_cube((size, size), 4, rgba.tobytes(), dtype="f4")
+        chain.build_mipmaps(0, levels - 1)  # allocates the levels (overwritten below)
+        source.use(0)
+        p = self.prog
+        p["source"], p["source_size"] = 0, float(size)
+        for k, rough in enumerate(level_roughness(levels)[1:], start=1):
+            s = max(1, size >> k)
+            chain.bind_to_image(0, read=False, write=True, level=k, format=GL_RGBA32F)
+            p["size"], p["roughness"], p["samples"] = s, float(rough), SAMPLES[min(k, len(SAMPLES) - 1)]
+            p.run((s + 7) // 8, (s + 7) // 8, 6)
+            self.ctx.memory_barrier()
+        source.release()
+        chain.filter = FILTERS["trilinear"]
+        return chain, levels
