@@ -26,12 +26,16 @@ lint: setup
 	.venv/bin/ruff check probeless messages nodes tests tools
 	.venv/bin/lint-imports
 
+# on pytest-xdist workers, a module per worker at a time (tests/conftest.py: order, timing-sensitive tests alone)
+PYTEST_WORKERS ?= 2
+PYTEST_XDIST = -n $(PYTEST_WORKERS) --dist loadfile
+
 test: lint
-	.venv/bin/python -m pytest -q
+	.venv/bin/python -m pytest -q $(PYTEST_XDIST)
 
 # the inner loop: everything not marked slow (see the README for its time)
 test-fast: lint
-	.venv/bin/python -m pytest -q -m "not slow"
+	.venv/bin/python -m pytest -q $(PYTEST_XDIST) -m "not slow"
 
 bench: setup
 	.venv/bin/probeless bench bus

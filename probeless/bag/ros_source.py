@@ -36,6 +36,7 @@ INSTALL_HINT = "reading and writing ROS bags needs the rosbags package: pip inst
 IMAGE_TYPES = {"sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"}
 POSE_TYPES = {"geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry"}
 TF_TYPE = "tf2_msgs/msg/TFMessage"
+CONVERTED = IMAGE_TYPES | POSE_TYPES | {TF_TYPE, "sensor_msgs/msg/CameraInfo"}
 
 
 def require_rosbags() -> Any:
@@ -122,6 +123,8 @@ class RosBag:
             if role is None or role == rt.IGNORE:
                 self.skipped[c.topic] = f"{c.msgtype}: named by no preset or --map" if role is None else \
                     f"{c.msgtype}: not needed"
+            elif c.msgtype not in CONVERTED and role != rt.VIEWER_TF:
+                self.skipped[c.topic] = f"{c.msgtype}: no probeless message type for it"
             elif only is not None and not role.startswith("@") and role not in only:
                 self.skipped[c.topic] = f"{c.msgtype}: not selected"
             else:

@@ -71,8 +71,9 @@ def recorded_types(bag: str) -> dict[str, str]:
     return {t: info.type_name for t, info in topics.items()}
 
 
-def recorded_nodes(bag: str) -> dict[str, str]:
-    """node id -> ``node:`` type of the graph that made a recording (its stored plan); {} when it has none."""
+def recorded_nodes(bag: str) -> tuple[dict[str, str], dict[str, dict]]:
+    """(node id -> ``node:`` type, node id -> params) of the graph that made a recording (its stored plan);
+    empty when it has none."""
     import json
 
     from probeless.bag.info import GRAPH
@@ -81,9 +82,11 @@ def recorded_nodes(bag: str) -> dict[str, str]:
         meta = reader.metadata().get(GRAPH) or {}
     try:
         nodes = json.loads(meta.get("plan") or "{}").get("nodes") or {}
-        return {str(nid): str(n["node"]) for nid, n in nodes.items() if isinstance(n, dict) and n.get("node")}
+        nodes = {str(nid): n for nid, n in nodes.items() if isinstance(n, dict) and n.get("node")}
+        return ({nid: str(n["node"]) for nid, n in nodes.items()},
+                {nid: n["params"] for nid, n in nodes.items() if isinstance(n.get("params"), dict)})
     except (ValueError, AttributeError, TypeError):
-        return {}
+        return {}, {}
 
 
 def replay_into(graph: Graph, bag: str, ns: argparse.Namespace, params: dict, tag: str) -> list[str]:
@@ -92,9 +95,10 @@ def replay_into(graph: Graph, bag: str, ns: argparse.Namespace, params: dict, ta
     replace = ns.replace.split(",") if getattr(ns, "replace", None) else None
     keep = ns.keep.split(",") if getattr(ns, "keep", None) else None
     notes: list[str] = []
+    types, node_params = recorded_nodes(bag)
     replaced = add_player(graph, bag, recorded_types(bag), replace=replace,
                           remap=parse_remaps(tuple(getattr(ns, "remap", ()) or ())), params=params,
-                          recorded_nodes=recorded_nodes(bag), keep=keep, notes=notes)
+                          recorded_nodes=types, recorded_params=node_params, keep=keep, notes=notes)
     print(f"[{tag}] replaying {bag}:", file=sys.stderr)
     for line in notes:
         print(f"[{tag}]   {line}", file=sys.stderr)

@@ -17,7 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
-DFG_SIZE = 32       # table side: mu and roughness each sampled at (i + 0.5) / DFG_SIZE [count]
+DFG_SIZE = 32       # table side: mu and roughness each sampled at i / (DFG_SIZE - 1) [count] (ibl_specular.glsl)
 DFG_SAMPLES = 2048  # samples per entry [count]
 MIN_ALPHA = 1e-4    # the smallest alpha (ibl_specular.glsl's IBL_MIN_ALPHA)
 
@@ -65,10 +65,10 @@ def dfg_terms(mu: np.ndarray, roughness: np.ndarray, samples: int = DFG_SAMPLES)
 
 @lru_cache(maxsize=1)
 def dfg_table() -> np.ndarray:
-    """(DFG_SIZE, DFG_SIZE, 2) float32 (A, B): row = roughness index, column = mu index, each at (i + 0.5) / size
-    (the texel centres of a linear-filtered texture read at (mu, roughness))."""
-    x = (np.arange(DFG_SIZE) + 0.5) / DFG_SIZE
-    return dfg_terms(x[None, :], x[:, None]).astype(np.float32)
+    """(DFG_SIZE, DFG_SIZE, 2) float32 (A, B): row = roughness index, column = mu index, each at i / (size - 1)
+    (mu at least 1e-3); the shader reads texel centres (``ibl_dfg``), so 0 and 1 are exact, not clamped."""
+    x = np.arange(DFG_SIZE) / (DFG_SIZE - 1)
+    return dfg_terms(np.maximum(x, 1e-3)[None, :], x[:, None]).astype(np.float32)
 
 
 def energy_compensation(mu, roughness, f0) -> np.ndarray:

@@ -8,6 +8,7 @@ experiment: replay the inputs, run the new node, compare.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from probeless.errors import BagError, GraphError
@@ -73,13 +74,14 @@ def add_recorder(graph: Graph, path: str, *, topics: list[str] | None = None, di
 def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: list[str] | None = None,
                remap: dict[str, str] | None = None, params: dict | None = None,
                recorded_nodes: dict[str, str] | None = None, keep: list[str] | None = None,
-               notes: list[str] | None = None) -> list[str]:
+               notes: list[str] | None = None, recorded_params: dict[str, dict] | None = None) -> list[str]:
     """Swap source nodes for a ``bag_player``; ``recorded`` maps recorded topic -> type name.
 
-    ``recorded_nodes`` (node id -> ``node:`` type of the recorded graph) marks swaps: a node whose
-    type differs from the recorded one runs live, and so does every node it feeds, unless ``replace``
-    names it. ``keep`` names nodes that run live anyway. ``notes`` receives one line per decision
-    (what comes from the recording, what runs live and why). Returns the ids of the replaced nodes.
+    ``recorded_nodes`` (node id -> ``node:`` type of the recorded graph) and ``recorded_params`` (node id ->
+    params) mark swaps: a node whose type or params differ from the recorded ones runs live, and so does
+    every node it feeds, unless ``replace`` names it. ``keep`` names nodes that run live anyway. ``notes``
+    receives one line per decision (what comes from the recording, what runs live and why). Returns the ids
+    of the replaced nodes.
     Raises GraphError/BagError naming the node or topic at fault.
     """
     remap = remap or {}
@@ -94,16 +96,21 @@ def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: lis
     both = sorted(set(keep) & set(replace or []))
     if both:
         raise GraphError(f"node(s) {both} are in both --replace and --keep", file=graph.file)
-    swapped = swapped_nodes(graph, recorded_nodes or {})
-    lines = [f"{n}: recorded as {rec}, graph has {graph.nodes[n].node}: "
-             + ("replaced by the recording (--replace names it)" if replace is not None and n in replace
-                else f"running {graph.nodes[n].node} live") for n, rec in swapped.items()]
+    recordable = [n for n, outs in outputs.items() if outs and all(t in played for t in outs.values())]
+    changed = {n: what for n, what in swapped_nodes(graph, recorded_nodes or {}, recorded_params or {}).items()
+               if n in recordable}  # a node the recording could stand in for, and whose type or params changed
+    # a source (no input but timers) with other params (a count, a duration) is still what a replay replaces
+    sources = {n for n, what in changed.items() if "recorded with " in what and not _has_wired_inputs(graph, n)}
+    swapped = {n: what for n, what in changed.items() if n not in sources}
+    lines = [f"{n}: {what}: " + ("replaced by the recording (--replace names it)" if replace is not None
+                                  and n in replace else f"running {graph.nodes[n].node} live")
+             for n, what in swapped.items()]
+    lines += [f"{n}: {changed[n]}: a source, replaced by the recording (--keep {n} runs it live)" for n in sources]
     fed: dict[str, str] = {}
     if replace is None:
         roots = [n for n in graph.nodes if n in swapped or n in keep]
         fed = downstream(graph, roots)
-        replace = [n for n, outs in outputs.items() if outs and all(t in played for t in outs.values())
-                   and n not in swapped and n not in keep and n not in fed]
+        replace = [n for n in recordable if n not in swapped and n not in keep and n not in fed]
         if not replace:
             raise BagError(f"{bag}: no node's outputs are all in the recording; name the nodes with --replace "
                            f"(recorded topics: {sorted(played)})")
@@ -136,20 +143,39 @@ def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: lis
     return list(replace)
 
 
-def swapped_nodes(graph: Graph, recorded_nodes: dict[str, str]) -> dict[str, str]:
-    """node id -> recorded type, for the graph's nodes whose type differs from the recording's."""
+def swapped_nodes(graph: Graph, recorded_nodes: dict[str, str],
+                  recorded_params: dict[str, dict] | None = None) -> dict[str, str]:
+    """node id -> what differs (``recorded as X, graph has Y`` or the params), for the graph's nodes whose
+    type or params differ from the recording's."""
     out = {}
     for node_id, decl in graph.nodes.items():
         rec = recorded_nodes.get(node_id)
-        if rec is None or rec == decl.node or node_id in (PLAYER_ID, RECORDER_ID):
+        if rec is None or node_id in (PLAYER_ID, RECORDER_ID):
             continue
-        try:  # the same class under another spelling (registered name vs module:Class) is no swap
-            if resolve_node(rec, base=Path(decl.file).parent) is graph.node_classes.get(node_id):
-                continue
-        except GraphError:
-            pass
-        out[node_id] = rec
+        if rec != decl.node and not _same_class(graph, decl, rec):
+            out[node_id] = f"recorded as {rec}, graph has {decl.node}"
+            continue
+        params = (recorded_params or {}).get(node_id)
+        if params is not None:
+            changed = sorted(k for k in set(params) | set(decl.params)
+                             if json.dumps(params.get(k), default=str) != json.dumps(decl.params.get(k), default=str))
+            if changed:
+                was = ", ".join(f"{k}={params.get(k)!r}" for k in changed)
+                now = ", ".join(f"{k}={decl.params.get(k)!r}" for k in changed)
+                out[node_id] = f"recorded with {was}, graph has {now}"
     return out
+
+
+def _has_wired_inputs(graph: Graph, node_id: str) -> bool:
+    return any(i.timer_period_ns is None for i in graph.nodes[node_id].inputs.values())
+
+
+def _same_class(graph: Graph, decl: NodeDecl, recorded: str) -> bool:
+    """The same class under another spelling (registered name vs module:Class) is no swap."""
+    try:
+        return resolve_node(recorded, base=Path(decl.file).parent) is graph.node_classes.get(decl.id)
+    except GraphError:
+        return False
 
 
 def downstream(graph: Graph, roots: list[str]) -> dict[str, str]:

@@ -31,6 +31,7 @@ import zmq
 from probeless.errors import ParamError, ProbelessError
 from probeless.runtime.params import check_params, load_params
 
+
 def ctl_endpoint(run_dir: Any, index: int) -> str:
     """Where node number ``index`` of a run serves tool requests."""
     return f"ipc://{run_dir}/{index}.ctl"

@@ -12,7 +12,7 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from ros_bags import COLOUR_FROM_DEPTH, COLOUR_FROM_FISHEYE, K_RGB, T0_NS, write_rig_bag  # noqa: E402
+from ros_bags import COLOUR_FROM_DEPTH, COLOUR_FROM_FISHEYE, K_RGB, SEVEN, T0_NS, write_rig_bag  # noqa: E402
 
 from probeless.bag.reader import BagReader  # noqa: E402
 from probeless.bag.ros_import import import_bag  # noqa: E402
@@ -160,20 +160,19 @@ def test_empty_bags_and_service_topics(tmp_path):
     assert not (tmp_path / "e.mcap").exists()
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
-    event = "example_interfaces/srv/AddTwoInts_Event"
+    event = "example_interfaces/msg/AddTwoInts_Event"  # rosbags registers it under msg/
     ts.register(get_types_from_msg("service_msgs/ServiceEventInfo info\nint64[] request\nint64[] response", event))
     ts.register(get_types_from_msg("uint8 event_type\nbuiltin_interfaces/Time stamp\nchar[16] client_gid\n"
                                    "int64 sequence_number", "service_msgs/msg/ServiceEventInfo"))
     T = ts.types
-    src, wrote = tmp_path / "svc", None
-    wrote = write_rig_bag(tmp_path / "rig", "mcap", frames=1, fisheye=1)
+    src = tmp_path / "svc"
     with Writer(src, version=8, storage_plugin=StoragePlugin.MCAP) as w:
         c = w.add_connection("/add_two_ints/_service_event", event, typestore=ts)
         info = T["service_msgs/msg/ServiceEventInfo"](event_type=0, stamp=T["builtin_interfaces/msg/Time"](
             sec=1, nanosec=0), client_gid=np.zeros(16, np.uint8), sequence_number=1)
         w.write(c, T0_NS, ts.serialize_cdr(T[event](info=info, request=np.array([1, 2]), response=np.array([3])),
                                            event))
-        img = cv2.cvtColor(wrote["seven"][0]["rgb"], cv2.COLOR_RGB2BGR)
+        img = cv2.imread(str(SEVEN / "frame-000000.color.jpg"))
         m = T["sensor_msgs/msg/Image"](header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
             sec=1, nanosec=0), frame_id="c"), height=480, width=640, encoding="bgr8", is_bigendian=0, step=1920,
             data=img.reshape(-1))

@@ -226,7 +226,7 @@ def test_eval_ldr_json_pictures_and_figure(case, tmp_path, capsys):
     from probeless.eval.hdr_expand import format_table
 
     table = format_table(res)
-    assert "ggx_ssim" in table and f"{row['ggx_rms']:.4g}" in table and "roughness 0.3" in table
+    assert "ggx ssim" in table and f"{row['ggx_rms']:.4g}" in table and "roughness 0.3" in table
 
 
 @pytest.mark.gl

@@ -13,8 +13,8 @@ from probeless.geom.cube import cube_directions, cube_solid_angles, sample_cubem
 from probeless.gl.context import create_context
 from probeless.ibl.materials import Metal, Mirror
 
-W = H = 96
-F = 150.0
+W = H = 64
+F = 100.0
 K = np.array([[F, 0, (W - 1) / 2], [0, F, (H - 1) / 2], [0, 0, 1.0]])
 CENTRE, R = np.array([0.0, 0.0, 1.0]), 0.5
 EYE = CENTRE + np.array([2.6, -0.8, 0.9])
@@ -38,8 +38,7 @@ def rays(sub: int = 1):
     """(H, W, sub², 3) unit world rays through a sub x sub grid in every pixel (centres when sub = 1)."""
     o = (np.arange(sub) + 0.5) / sub - 0.5
     v, u = np.mgrid[0:H, 0:W].astype(float)
-    uu = u[..., None, None] + o[None, None, None, :]
-    vv = v[..., None, None] + o[None, None, :, None]
+    uu, vv = np.broadcast_arrays(u[..., None, None] + o[None, None, None, :], v[..., None, None] + o[None, None, :, None])
     d = np.stack([(uu - K[0, 2]) / F, (vv - K[1, 2]) / F, np.ones_like(uu)], axis=-1).reshape(H, W, sub * sub, 3)
     d = d @ POSE[:3, :3].T
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
@@ -118,7 +117,7 @@ def test_dfg_table_matches_scipy_quadrature():
             w = fc if fresnel_weight else 1 - fc
             return w * d * g1(r, lv[2]) * g1(r, mu) / (4 * mu) * np.sin(t)
 
-        return integrate.dblquad(f, 0, 2 * np.pi, 0, np.pi / 2, epsabs=1e-7)[0]
+        return integrate.dblquad(f, 0, 2 * np.pi, 0, np.pi / 2, epsabs=1e-5)[0]
 
     for mu, r in [(0.9, 0.7), (0.35, 0.4)]:
         a, b = dfg_terms(mu, r)
@@ -134,8 +133,8 @@ def test_dfg_table_matches_scipy_quadrature():
 def test_white_furnace_single_scattering_and_energy_compensation(ctx, roughness):
     from probeless.ibl.dfg import dfg_terms
 
-    faces = np.ones((6, 32, 32, 3), np.float32)
-    keep = interior()
+    faces = np.ones((6, 16, 16, 3), np.float32)
+    keep = interior(3)
     hit, n, v = hits(rays()[:, :, 0])
     mu = np.sum(n * v, axis=-1)[keep]
     single = render(ctx, Metal((1, 1, 1), roughness), faces, energy_compensation=False).color[keep, 0]
@@ -146,8 +145,8 @@ def test_white_furnace_single_scattering_and_energy_compensation(ctx, roughness)
     pick = np.linspace(0, len(mu) - 1, 25).astype(int)
     ref = [ggx_integral(n[keep][i], v[keep][i], roughness, dirs, np.ones(len(dirs)), dw) for i in pick]
     np.testing.assert_allclose(single[pick], ref, rtol=0.03)
-    assert single.mean() == pytest.approx(dfg_terms(mu, roughness).sum(-1).mean(), rel=0.01)
-    assert single.mean() < 0.9  # a single-scattering rough lobe loses energy: the old shader returned exactly 1
+    assert single[pick].mean() == pytest.approx(dfg_terms(mu[pick], roughness).sum(-1).mean(), rel=0.01)
+    assert single.mean() < 0.95  # a single-scattering rough lobe loses energy: the old shader returned exactly 1
     full = render(ctx, Metal((1, 1, 1), roughness), faces).color[keep, 0]
     np.testing.assert_allclose(full, 1.0, atol=0.03)  # Filament's compensation brings white metal back to 1
 
@@ -186,7 +185,7 @@ def test_roughness_sweep_through_the_node_messages_has_no_level_jumps(ctx):
     from probeless.messages.header import Header
     from probeless.messages.lighting import Cubemap, CubemapLevel
 
-    d = cube_directions(64)
+    d = cube_directions(32)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     checker = ((np.floor(3 * d[..., 0] + 9) + np.floor(3 * d[..., 1] + 9)) % 2)[..., None] * [2.0, 1.5, 1.0] + 0.2
     faces = checker.astype(np.float32)
@@ -215,7 +214,8 @@ def test_mirror_is_antialiased_against_a_supersampled_reference(ctx):
     keep = interior(3)
     ok, n, v = hits(rays(8))  # 64 rays a pixel
     refl = 2 * np.sum(n * v, axis=-1, keepdims=True) * n - v
-    ref = np.where(ok[..., None], sample_cubemap(faces, refl), 0).sum(axis=2) / np.maximum(ok.sum(axis=2), 1)[..., None]
+    seen = sample_cubemap(faces, refl.reshape(-1, 3)).reshape(refl.shape)
+    ref = np.where(ok[..., None], seen, 0).sum(axis=2) / np.maximum(ok.sum(axis=2), 1)[..., None]
     got = render(ctx, Mirror(), faces).color
     rel = np.linalg.norm(got[keep] - ref[keep]) / np.linalg.norm(ref[keep])
     assert rel < 0.08, rel  # one lookup a pixel at level 0 (the old shader) aliases: about 0.3 here

@@ -24,7 +24,7 @@ CASES = {
     "bad_type_mismatch": (8, "camera2", "inputs.tick",
                           "camera/image publishes sensor/Image, input 'tick' expects core/Tick"),
     "bad_param_unknown": (7, "camera", "colour", "unknown parameter"),
-    "bad_param_type": (6, "camera", "width", "expected int, got str 'wide'"),
+    "bad_param_type": (6, "camera", "width", "expected int, got a string 'wide'"),
     "bad_param_range": (6, "camera", "height", "below the minimum 1"),
     "bad_param_choice": (8, "fx", "operation", "'sharpen' is not one of"),
     "bad_param_length": (5, "interp", "translation", "needs 3 value(s), got 2"),
@@ -102,7 +102,7 @@ def test_an_env_value_standing_alone_is_typed_like_a_command_line_value(tmp_path
     monkeypatch.setenv("PROBELESS_TEST_W", "0320")          # leading zeros: not a number, stays text
     graph = parse_graph(g)
     assert graph.nodes["cam"].params["width"] == "0320"
-    assert "expected int, got str '0320'" in validate(graph)[0].message
+    assert "expected int, got a string '0320'" in validate(graph)[0].message
 
 
 def test_arg_defaults_may_use_arguments_declared_above(tmp_path):
@@ -141,14 +141,15 @@ def test_check_names_a_missing_scene_file(monkeypatch, capsys):
     monkeypatch.chdir(GRAPHS.parent.parent)
     assert main(["check", "launch/probeless.yaml", "scene:=nonexistent.yaml"]) == 2
     err = capsys.readouterr().err
-    first = err.splitlines()[0]
-    # file:line of the rig's params (the included source file), node id, key, and the file that is missing
-    assert re.match(r"error: \S*launch/sources/synthetic\.yaml:\d+: node 'rig': key 'scene': "
-                    r"nonexistent\.yaml: file not found", first), first
-    # the objects default to the scene's: the envmap node and the compositor name the same file, nothing else
+    # one error for one bad argument (issue 28): the argument, the missing file, and every param it reached
+    # with its file:line (the rig's params in the included source file; the objects default to the scene's)
     errors = [line for line in err.splitlines() if line.startswith("error:")]
-    assert len(errors) == 3 and all("nonexistent.yaml: file not found" in e for e in errors), errors
-    assert "key 'objects_file'" in errors[1] and "Traceback" not in err
+    assert len(errors) == 1, errors
+    assert errors[0].startswith("error: command line: argument scene:=nonexistent.yaml: nonexistent.yaml: "
+                                "file not found"), errors[0]
+    assert re.search(r"rig\.scene \(\S*launch/sources/synthetic\.yaml:\d+\)", errors[0]), errors[0]
+    assert "envmap.objects_file" in errors[0] and "compositor.objects_file" in errors[0]
+    assert "Traceback" not in err
     assert main(["launch", "launch/probeless.yaml", "scene:=nonexistent.yaml"]) == 2  # nothing is started
     assert capsys.readouterr().err == err
 

@@ -106,6 +106,17 @@ def test_same_type_is_replaced_and_keep_overrides(tmp_path):
     assert any("replaced by the recording (--replace names it)" in n for n in notes)
 
 
+def test_changed_params_count_as_a_swap(tmp_path):
+    graph, notes = load_checked(str(_graph_dir(tmp_path) / "swap.yaml"), {"out_dir": "elsewhere"}), []
+    same = dict(RECORDED, filter="image_transform")
+    recorded_params = {"camera": dict(graph.nodes["camera"].params), "filter": {"operation": "edges"},
+                       "summary": {"out_dir": "out/summary"}}
+    assert add_player(graph, "rec.mcap", TOPICS, recorded_nodes=same, recorded_params=recorded_params,
+                      notes=notes) == ["camera"]
+    assert "filter: recorded with operation='edges', graph has operation=None: running image_transform live" in notes
+    assert not any(n.startswith("summary:") for n in notes)  # a sink is live anyway: its out_dir is no news
+
+
 def test_keep_and_replace_errors_name_the_node(tmp_path):
     path = str(_graph_dir(tmp_path) / "swap.yaml")
     with pytest.raises(GraphError, match="--keep: no node 'nope'"):

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from locations import TESTS
 
+from probeless.errors import ProbelessError
 from probeless.messages import Header, Image, InputCounters, NodeStatus
 from probeless.topics import (
     RateStats,
@@ -201,7 +202,7 @@ def test_list_shows_topics_types_and_subscribers(tmp_path, capsys):
 
 @pytest.mark.graph
 @pytest.mark.slow
-def test_several_graphs_pick_most_recent_and_say_so(tmp_path):
+def test_several_graphs_the_tools_ask_which_never_guess(tmp_path, capsys):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
     g1 = launch(tmp_path / "a", ticker_graph(tmp_path / "a"))
@@ -213,10 +214,25 @@ def test_several_graphs_pick_most_recent_and_say_so(tmp_path):
             while len(running_graphs()) < 2 and time.monotonic() < deadline:
                 time.sleep(0.02)
             err = io.StringIO()
-            chosen = select_graph(err=err)
-            assert chosen.run_dir == g2.graph.run_dir
-            assert "2 graphs are running" in err.getvalue() and str(g1.graph.run_dir) in err.getvalue()
-            assert select_graph(g1.graph.run_dir).run_dir == g1.graph.run_dir
+            with pytest.raises(ProbelessError, match="2 graphs are running; choose one with --graph RUN_ID"):
+                select_graph(err=err)
+            listed = err.getvalue()
+            assert g1.graph.run_id in listed and g2.graph.run_id in listed
+            # a run id, a run directory, or the graph file it was launched from names exactly one
+            assert select_graph(g1.graph.run_id).run_dir == g1.graph.run_dir
+            assert select_graph(g2.graph.run_dir).run_dir == g2.graph.run_dir
+            assert select_graph(str(tmp_path / "a" / "graph.yaml")).run_dir == g1.graph.run_dir
+            # the CLI: a one-line error saying to pass --graph, exit code non-zero; `runs` lists both
+            assert topic_main(["list"]) == 2
+            assert capsys.readouterr().err.strip().splitlines()[-1] == \
+                "error: 2 graphs are running; choose one with --graph RUN_ID"
+            assert topic_main(["list", "--graph", g1.graph.run_id]) == 0
+            assert "src/image" in capsys.readouterr().out
+            from probeless.cli import main
+
+            assert main(["runs"]) == 0
+            out = capsys.readouterr().out
+            assert g1.graph.run_id in out and g2.graph.run_id in out
         finally:
             stop(g2)
     finally:

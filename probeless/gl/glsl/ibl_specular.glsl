@@ -59,6 +59,12 @@ float ibl_footprint_lod(float spread, float size) {
     return log2(max(spread * size * 0.5, 1e-6));
 }
 
+// (A, B) of the DFG table (probeless.ibl.dfg: 32 x 32 entries at i / 31) for n.v = mu and perceptual roughness.
+vec2 ibl_dfg(sampler2D dfg, float mu, float roughness) {
+    vec2 x = clamp(vec2(mu, roughness), 0.0, 1.0);
+    return texture(dfg, (x * 31.0 + 0.5) / 32.0).rg;
+}
+
 // Single-scattering GGX reflection of the environment towards the eye, Schlick Fresnel f0 -> f90, n samples
 // spread over the pixel (dN, dI: screen derivatives of the normal and of the view ray). Rough lobes read the mip of
 // each sample's solid angle (+1 level, Colbert & Krivanek's bias), all lookups at least the level of the sample spacing.
@@ -120,7 +126,7 @@ vec3 ibl_specular_split(samplerCube chain, float max_level, float size, sampler2
         }
         vec3 r = reflect(is, ns);
         vec3 d = normalize(mix(r, ns, alpha * alpha));
-        vec2 ab = texture(dfg, vec2(clamp(dot(ns, -is), 0.0, 1.0), roughness)).rg;
+        vec2 ab = ibl_dfg(dfg, dot(ns, -is), roughness);
         vec3 e = f0 * ab.x + f90 * ab.y;
         if (compensate) e *= 1.0 + f0 * (1.0 / max(ab.x + ab.y, 1e-3) - 1.0);
         sum += e * textureLod(chain, d, lod).rgb;

@@ -84,7 +84,7 @@ void main() {
         } else if (sum_level >= 0) {
             vec3 spec = ibl_specular_sum(env, env_size, sum_level, N, I, roughness, ks, f90);
             if (energy_compensation) {
-                vec2 ab = texture(dfg, vec2(clamp(dot(N, -I), 0.0, 1.0), roughness)).rg;
+                vec2 ab = ibl_dfg(dfg, dot(N, -I), roughness);
                 spec *= ibl_energy_compensation(ab, ks);
             }
             color += spec;
@@ -94,7 +94,7 @@ void main() {
         } else {
             vec3 spec = ibl_specular(env, env_size, N, I, dNdx, dNdy, dIdx, dIdy, roughness, ks, f90, spec_samples);
             if (energy_compensation) {
-                vec2 ab = texture(dfg, vec2(clamp(dot(N, -I), 0.0, 1.0), roughness)).rg;
+                vec2 ab = ibl_dfg(dfg, dot(N, -I), roughness);
                 spec *= ibl_energy_compensation(ab, ks);
             }
             color += spec;

@@ -8,6 +8,10 @@
 // nearest surface (the depth test) and, among nodes of one surface (equal depth: neighbours on a wall, whose bounding
 // disks overlap), the node whose centre is nearest the texel's ray: a Voronoi split of the overlaps instead of the
 // lower slot number winning, which let the disks of bright patches (a lamp) spill over their dark neighbours.
+// The depth is pushed back by rim_depth * rank (log units, microbuffer.RIM_DEPTH): a bounding disk's rim may lie
+// beyond its points, so a nearer node's rim loses to a node a step behind that is hit near its centre (a decal a few
+// mm in front of its wall no longer covers the wall beyond its edges); steps of more than rim_depth x distance
+// occlude as before.
 // MB_EMPTY = nothing landed there.
 
 #define PBGI_PI 3.14159265358979
