@@ -131,7 +131,9 @@ class RosbagPlayer(BagPlayer):
     def _items(self, start: int, end: int | None) -> Iterator[Item]:
         """Every source merged in log-time order, the floorplan first and the initial pose with the first rgb."""
         p = self.params
-        streams = [(Item(*m) for m in self.bag.messages(start, end))]
+        external = self.fisheye_bag is not None or self.video is not None   # replaces the bag's own fisheye
+        streams = [(Item(*m) for m in self.bag.messages(start, end)
+                    if not (external and m[0] in (rt.FISHEYE, rt.FISHEYE_INFO)))]
         if self.fisheye_bag is not None:
             streams.append(Item(*m) for m in self.fisheye_bag.messages(start, end))
         if self.video is not None:

@@ -65,3 +65,50 @@ class GgxPrefilter:
         source.release()
         chain.filter = FILTERS["trilinear"]
         return chain, levels
+
+
+LIGHT_FACE = 32    # face size at which bright texels become lights [texels]
+LIGHTS = 128       # lights taken out of a map at most (ibl_specular.glsl's IBL_MAX_LIGHTS) [count]
+
+
+def extract_lights(faces: np.ndarray, count: int = LIGHTS, face: int = LIGHT_FACE
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(residual faces (6, S, S, 3), light directions (n, 3), light powers (n, 3) [radiance x sr]) of a map.
+
+    The map at ``face`` texels a side is cut at the luminance of its ``count + 1``-th brightest texel: what every
+    brighter texel holds above that level leaves the map and becomes one light (its solid-angle-weighted centroid
+    direction, its integrated radiance), so the map minus the lights is the residual exactly. The renderer sums the
+    lights with the exact BRDF and reads the residual, whose contrast is now bounded, through the prefiltered chain.
+    """
+    from probeless.color import REC709_Y
+    from probeless.geom.cube import cube_directions, cube_solid_angles
+
+    f = np.asarray(faces, np.float32)[..., :3]
+    size = f.shape[1]
+    k = size // face if size >= face and size % face == 0 else 0
+    if count <= 0 or k == 0:
+        return f, np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)
+    dw = cube_solid_angles(size).astype(np.float32)
+    small = (f * dw[..., None]).reshape(6, face, k, face, k, 3).sum(axis=(2, 4))
+    small /= dw.reshape(6, face, k, face, k).sum(axis=(2, 4))[..., None]
+    y = small @ REC709_Y
+    flat = np.sort(y.ravel())
+    if len(flat) <= count:
+        return f, np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)
+    level = float(flat[-count - 1])
+    keep = np.where(y > level, level / np.maximum(y, 1e-30), 1.0).astype(np.float32)  # residual / map per texel
+    keep_full = np.repeat(np.repeat(keep, k, axis=1), k, axis=2)[..., None]
+    residual = f * keep_full
+    excess = (f - residual) * dw[..., None]  # radiance x sr per texel
+    weight = excess @ REC709_Y
+    lit = np.argwhere(y > level)
+    dirs = cube_directions(size)
+    dirs = dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
+    out_d, out_p = [], []
+    for fc, r, c in lit:
+        sl = (fc, slice(r * k, (r + 1) * k), slice(c * k, (c + 1) * k))
+        w = weight[sl]
+        centroid = (dirs[sl] * w[..., None]).sum(axis=(0, 1))
+        out_d.append(centroid / max(np.linalg.norm(centroid), 1e-30))
+        out_p.append(excess[sl].sum(axis=(0, 1)))
+    return residual, np.asarray(out_d, np.float32), np.asarray(out_p, np.float32)

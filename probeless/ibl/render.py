@@ -27,13 +27,14 @@ from probeless.ibl import prt
 from probeless.ibl.dfg import dfg_table
 from probeless.ibl.lighting import Lighting, glossy_faces
 from probeless.ibl.materials import shading
-from probeless.ibl.prefilter import GgxPrefilter, chain_levels, level_roughness
+from probeless.ibl.prefilter import GgxPrefilter, chain_levels, extract_lights, level_roughness
 from probeless.ibl.mesh_io import PlacedMesh
 
 SHADERS = Path(__file__).with_name("shaders")
-LOBES = ("exact", "split_sum", "sampled")
-SUM_ROUGHNESS = 0.3  # "exact": lobes at least this rough are summed over the texels of a small mip level
+LOBES = ("hybrid", "split_sum", "texel_sum", "sampled")
+SUM_ROUGHNESS = 0.3  # "texel_sum": lobes at least this rough are summed over the texels of a small mip level
 SUM_FACE = ((0.55, 16), (SUM_ROUGHNESS, 32))  # (roughness from, face size of the summed level [texels])
+MAX_LIGHTS = 128   # object.frag.glsl's MAX_LIGHTS (>= probeless.ibl.prefilter.LIGHTS)
 SPEC_SAMPLES = 128  # lookups per pixel of a rough specular lobe (importance-sampled, filtered) [count]
 AA_SAMPLES = 64    # lookups per pixel of a mirror (roughness 0) or a refraction, spread over the pixel [count]
 
@@ -101,19 +102,24 @@ class _Gpu:
                                               index_buffer=self.floor_ibo)
         self.env = self.glossy = self.chain = None
         self.sum_level = -1
+        self.lights = (np.zeros((0, 3), "f4"), np.zeros((0, 3), "f4"))  # (directions, powers) of the lobe's lights
 
-    def set_lighting(self, ctx, lighting: Lighting, prefilter=None, exact: bool = True) -> None:
+    def set_lighting(self, ctx, lighting: Lighting, prefilter=None, lobe: str = "hybrid") -> None:
         """Upload the environment (with its full mip chain) and evaluate the per-vertex PRT radiance and floor
         shadow ratio. Explicit prefiltered ``lighting.levels`` are uploaded for the lobe (read as they are)."""
         self.release_textures()
         self.env = upload_cube(ctx, np.asarray(lighting.faces, np.float32))
         self.env_size = float(lighting.faces.shape[1])
         pre = glossy_faces(lighting, self.shade.roughness)
-        lobe = pre is None and (self.shade.ks.any() or self.shade.f90.any())
-        lobe = lobe and self.shade.roughness >= level_roughness(chain_levels(lighting.faces.shape[1]))[1]
-        self.chain, levels = prefilter.chain(lighting.faces) if prefilter is not None and lobe else (None, 1)
-        self.sum_level = -1 if prefilter is not None or not exact else sum_level(self.shade.roughness,
-                                                                                  lighting.faces.shape[1])
+        spec = pre is None and (self.shade.ks.any() or self.shade.f90.any())
+        chained = spec and lobe in ("hybrid", "split_sum") and \
+            self.shade.roughness >= level_roughness(chain_levels(lighting.faces.shape[1]))[1]
+        residual, self.lights = lighting.faces, (np.zeros((0, 3), "f4"), np.zeros((0, 3), "f4"))
+        if chained and lobe == "hybrid":
+            residual, *self.lights = extract_lights(lighting.faces)
+        self.chain, levels = prefilter.chain(residual) if chained else (None, 1)
+        self.chain_max_level = float(levels - 1)
+        self.sum_level = sum_level(self.shade.roughness, lighting.faces.shape[1]) if lobe == "texel_sum" else -1
         self.chain_max_level = float(levels - 1)
         self.glossy = upload_cube(ctx, np.asarray(pre, np.float32)) if pre is not None else None
         sh = lighting.sh[:25]
@@ -148,7 +154,7 @@ class IblRenderer:
 
     def __init__(self, objects: list[IblObject], *, exposure: float = 1.0, near: float = 0.05, far: float = 50.0,
                  ctx: moderngl.Context | None = None, spec_samples: int = SPEC_SAMPLES, aa_samples: int = AA_SAMPLES,
-                 energy_compensation: bool = True, lobe: str = "exact"):
+                 energy_compensation: bool = True, lobe: str = "hybrid"):
         self.own_ctx = ctx is None
         self.ctx = ctx or create_context()
         self.ctx.__enter__()
@@ -160,7 +166,7 @@ class IblRenderer:
         if lobe not in LOBES:
             raise ProbelessError(f"IblRenderer: lobe must be one of {', '.join(LOBES)}, got {lobe!r}")
         self.lobe = lobe
-        self.prefilter = GgxPrefilter(self.ctx) if lobe == "split_sum" else None
+        self.prefilter = GgxPrefilter(self.ctx)
         self.floor_prog = load_program(self.ctx, "floor", shader_dir=SHADERS)
         self.objects = {o.id: _Gpu(self.ctx, self.obj_prog, self.floor_prog, o) for o in objects}
         self.exposure, self.near, self.far = exposure, near, far
@@ -170,7 +176,7 @@ class IblRenderer:
     def set_lighting(self, object_id: str, lighting: Lighting) -> None:
         """Light object ``object_id`` by ``lighting`` from now on."""
         g = self.objects[object_id]
-        g.set_lighting(self.ctx, lighting, self.prefilter, exact=self.lobe == "exact")
+        g.set_lighting(self.ctx, lighting, self.prefilter, self.lobe)
 
     def _framebuffers(self, width: int, height: int):
         if self._targets is None or self._targets[0] != (width, height):
@@ -215,6 +221,11 @@ class IblRenderer:
                          refr_samples=self.aa_samples, use_prt=g.prt is not None, exposure=float(self.exposure))
             if "sh_irr" in p:
                 p["sh_irr"].write(g.sh_irr.tobytes())
+            n_lights = len(g.lights[0])
+            set_uniforms(p, light_count=n_lights)
+            if n_lights and "light_dir" in p:
+                p["light_dir"].write(np.pad(g.lights[0], ((0, MAX_LIGHTS - n_lights), (0, 0))).astype("f4").tobytes())
+                p["light_power"].write(np.pad(g.lights[1], ((0, MAX_LIGHTS - n_lights), (0, 0))).astype("f4").tobytes())
             g.vao.render(moderngl.TRIANGLES)
         shadow_fbo.use()
         shadow_fbo.clear(1.0, 1.0, 1.0, 1.0)
@@ -244,7 +255,6 @@ class IblRenderer:
                 res.release()
         self._targets = None
         self.dfg.release()
-        if self.prefilter is not None:
-            self.prefilter.prog.release()
+        self.prefilter.prog.release()
         if self.own_ctx:
             self.ctx.release()

@@ -93,7 +93,7 @@ def _value(spec: Any, value: Any, where: str, stamp_ns: int | None) -> Any:
 
 
 def publish(graph: RunningGraph, topic_name: str, type_name: str, doc: Any, *, rate_hz: float | None = None,
-            count: int | None = None, wait_s: float = 3.0, err: IO[str] | None = None,
+            count: int | None = None, wait_s: float = 10.0, err: IO[str] | None = None,
             out: IO[str] | None = None) -> int:
     """Publish ``doc`` as a ``type_name`` message on ``topic_name`` once, or at ``rate_hz`` (until ``count``
     messages or Ctrl-C). Returns the number of messages sent."""

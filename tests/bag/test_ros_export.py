@@ -45,7 +45,8 @@ def _recording(path):
                                                  np.array([0.1, -0.2, 0.001, 0.002, 0.05]))),
              ("rig/fisheye/camera_info", CameraInfo(Header(t, "fisheye"), 1032, 778, "kannala_brandt", K,
                                                     np.array([0.01, -0.002, 0.0003, 0.0]))),
-             ("rig/fisheye_from_rgbd", PoseStamped(Header(t, "fisheye"), "rgbd", np.linalg.inv(f[1]["pose"]) @ f[0]["pose"])),
+             ("rig/fisheye_from_rgbd", PoseStamped(Header(t, "fisheye"), "rgbd",
+                                                   np.linalg.inv(f[1]["pose"]) @ f[0]["pose"])),
              ("slam/model/points", PointCloud(Header(t, "world"), rng.normal(size=(50, 3)).astype(np.float32),
                                               rng.integers(0, 256, (50, 3)).astype(np.uint8))),
              ("envmap/envmaps", Cubemap(Header(t, "world"), "sphere", np.zeros(3), np.zeros((6, 4, 4, 3), np.float16)))]

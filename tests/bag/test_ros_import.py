@@ -182,3 +182,41 @@ def test_empty_bags_and_service_topics(tmp_path):
     assert summary.skipped == {"/add_two_ints/_service_event": f"{event}: named by no preset or --map"}
     (_, fish), = _read(tmp_path / "s.mcap")["rig/fisheye"]
     assert fish.encoding == "bgr8" and np.array_equal(fish.data, img)
+
+
+def test_tum_preset_ground_truth_from_tf(tmp_path):
+    """A TUM-RGB-D-style ROS 1 bag: 32FC1 depth in metres, ground truth as /tf world -> kinect, and the
+    kinect -> optical frame chain on /tf too; rig/gt/rgbd_pose = world_from_optical at each update."""
+    from ros_bags import LINK_FROM_COLOUR, _Builder, seven_frames
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
+    b, frames = _Builder(ts), seven_frames(2)
+    with Writer(tmp_path / "tum.bag") as w:
+        conns = {}
+
+        def put(topic, msgtype, msg, t):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, msgtype, typestore=ts)
+            w.write(conns[topic], t, ts.serialize_ros1(msg, msgtype))
+        for f in frames:
+            t = f["stamp"]
+            world_from_kinect = f["pose"] @ np.linalg.inv(LINK_FROM_COLOUR)
+            put("/tf", "tf2_msgs/msg/TFMessage", b.tf(t, [("/world", "/kinect", world_from_kinect),
+                                                          ("/kinect", "/openni_rgb_optical_frame", LINK_FROM_COLOUR)]),
+                t)
+            put("/camera/rgb/camera_info", "sensor_msgs/msg/CameraInfo",
+                b.info(t, "/openni_rgb_optical_frame", 640, 480, K_RGB), t + 1)
+            put("/camera/rgb/image_color", "sensor_msgs/msg/Image",
+                b.image(t, "/openni_rgb_optical_frame", f["rgb"][:, :, ::-1], "bgr8"), t + 2)
+            put("/camera/depth/image", "sensor_msgs/msg/Image",
+                b.image(t, "/openni_rgb_optical_frame", f["depth"].astype(np.float32) / 1000, "32FC1"), t + 3)
+    import_bag(tmp_path / "tum.bag", tmp_path / "out.mcap", preset="tum")
+    got = _read(tmp_path / "out.mcap")
+    assert len(got["rig/gt/rgbd_pose"]) == 2
+    for (_, pose), (_, depth), f in zip(got["rig/gt/rgbd_pose"], got["rig/depth"], frames):
+        assert pose.header.stamp_ns == f["stamp"]
+        np.testing.assert_allclose(pose.target_from_source, f["pose"], atol=1e-9)
+        assert depth.depth_scale == 1.0 and np.array_equal(depth.data, f["depth"].astype(np.float32) / 1000)

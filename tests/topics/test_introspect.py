@@ -117,8 +117,9 @@ def test_topic_pub_reaches_the_subscribers_of_a_topic(tmp_path):
         with TopicReader([("fx/image", out_endpoint)], queue_size=500) as reader:
             time.sleep(0.5)
             sent = publish(g.graph, "src/image", "sensor/Image", {"data": pixel, "encoding": "rgb8"},
-                           rate_hz=10, count=3)
-            assert sent == 3
+                           rate_hz=10, count=2)
+            assert sent == 2
+            assert main(["topic", "pub", "src/image", "sensor/Image", "{data: [[[10, 200, 30]]], encoding: rgb8}"]) == 0
             got, deadline = [], time.monotonic() + 10
             while len(got) < 3 and time.monotonic() < deadline:
                 got += [m.data for _, _, m in reader.take(0.1) if m.data.shape == (1, 1, 3)]
@@ -178,9 +179,10 @@ def test_background_bag_record_with_inherited_stdin_records_and_says_how_much(tm
         wait_started(g)
         out = tmp_path / "rec.mcap"
         # as `probeless bag record ... &` from a shell: stdin inherited and left open (a pipe nobody writes)
-        proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "bag", "record", "-o", str(out),
-                                 "--duration", "2", "src/image"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                stderr=subprocess.STDOUT, text=True)
+        cmd = [sys.executable, "-m", "probeless.cli", "bag", "record", "-o", str(out), "--duration", "2",
+               "src/image", "--graph", g.graph.run_id]
+        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True)
         text, _ = proc.communicate(timeout=120)
     finally:
         stop(g)

@@ -48,6 +48,16 @@ float ibl_ggx_d(float alpha, float c) {
     return a2 / (IBL_PI * den * den);
 }
 
+// Single-scattering GGX BRDF times n.l for unit N, v (towards the eye), l (towards the light), Schlick f0 -> f90.
+vec3 ibl_ggx_cos(vec3 N, vec3 v, vec3 l, float alpha, vec3 f0, vec3 f90) {
+    float nl = dot(N, l), nv = max(dot(N, v), 1e-4);
+    if (nl <= 0.0) return vec3(0.0);
+    vec3 h = normalize(v + l);
+    float m = 1.0 - max(dot(v, h), 0.0);
+    vec3 F = f0 + (f90 - f0) * (m * m * m * m * m);
+    return F * (ibl_ggx_d(alpha, max(dot(N, h), 0.0)) * ibl_smith_g1(alpha, nv) * ibl_smith_g1(alpha, nl) / (4.0 * nv));
+}
+
 // Mip level of a lookup whose texel should cover solid angle omega [sr] in a cube of face size `size`.
 float ibl_lod(float omega, float size) {
     float texel = 4.0 * IBL_PI / (6.0 * size * size);

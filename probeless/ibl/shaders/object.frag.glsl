@@ -8,6 +8,10 @@ uniform float env_size;         // face size of env's level 0 [texels]
 uniform samplerCube chain;      // GGX-prefiltered chain of env (probeless.ibl.prefilter)
 uniform float chain_max_level;  // its last level (roughness 1)
 uniform bool split_sum;         // the lobe from the chain x DFG (else importance-sampled from env)
+#define MAX_LIGHTS 128
+uniform int light_count;        // lights taken out of the map (probeless.ibl.prefilter.extract_lights)
+uniform vec3 light_dir[MAX_LIGHTS];    // their unit world directions
+uniform vec3 light_power[MAX_LIGHTS];  // their radiance x solid angle
 uniform int sum_level;          // >= 0: the lobe as an exact sum over the texels of this mip level of env
 uniform sampler2D dfg;          // (A, B) of probeless.ibl.dfg, s = n.v, t = roughness
 uniform samplerCube glossy;     // an explicit prefiltered level (use_levels), read along R at level 0
@@ -91,6 +95,13 @@ void main() {
         } else if (split_sum) {
             color += ibl_specular_split(chain, chain_max_level, env_size, dfg, N, I, dNdx, dNdy, dIdx, dIdy, roughness,
                                         ks, f90, spec_samples, energy_compensation);
+            float alpha = max(roughness * roughness, IBL_MIN_ALPHA);
+            vec3 lit = vec3(0.0);
+            for (int i = 0; i < light_count; ++i)
+                lit += light_power[i] * ibl_ggx_cos(N, -I, light_dir[i], alpha, ks, f90);
+            if (energy_compensation)
+                lit *= ibl_energy_compensation(ibl_dfg(dfg, dot(N, -I), roughness), ks);
+            color += lit;
         } else {
             vec3 spec = ibl_specular(env, env_size, N, I, dNdx, dNdy, dIdx, dIdy, roughness, ks, f90, spec_samples);
             if (energy_compensation) {
