@@ -58,8 +58,8 @@ def load_maps(ns) -> dict[str, tuple]:
     """{name: (cube faces (6, S, S, 3), direction -> radiance lookup for Mitsuba's bitmap)}."""
     import cv2
 
-    from probeless.eval.ibl_mitsuba import cube_from_lookup, cube_lookup, panorama_lookup
     from probeless.errors import ProbelessError
+    from probeless.eval.ibl_mitsuba import cube_from_lookup, cube_lookup, panorama_lookup
 
     out = {}
     for path in [Path(p) for p in (ns.hdri if ns.hdri is not None else [HDRI / n for n in DEFAULT_HDRI])]:
@@ -153,8 +153,9 @@ def table(result: dict) -> str:
             corr = r.get("rel_rms_corrected", float("nan"))
             lines.append(f"{name:<24}{mat:<12}{r['rel_rms']:9.3f}{corr:8.3f}{r['noise']:8.3f}{r['mean_ratio']:8.3f}"
                          f"{shipped}")
-    lines.append(f"worst goal row: {result['worst_goal_row']} rel_rms {result['worst_goal_rel_rms']:.3f}, noise-corrected "
-                 f"{result.get('worst_goal_rel_rms_corrected', float('nan')):.3f} (goal <= {result['goal']}: "
+    lines.append(f"worst goal row: {result['worst_goal_row']} rel_rms {result['worst_goal_rel_rms']:.3f}, "
+                 f"noise-corrected {result.get('worst_goal_rel_rms_corrected', float('nan')):.3f} "
+                 f"(goal <= {result['goal']}: "
                  f"{'met' if result['goal_met'] else 'NOT met'}; {result.get('goal_rows_met')} of "
                  f"{result.get('goal_rows')} rows)")
     return "\n".join(lines)

@@ -4,8 +4,14 @@ Level k >= 1 of the chain (face size S >> k) holds the map prefiltered for perce
 ``r_k = 2^(-(levels - 1 - k) / 2)`` (GGX alpha = r² doubles from level to level: 1/16, 1/8, 1/4, 1/2, 1 for six
 levels; level 0 is the map itself), so a lookup at ``lod = levels - 1 + 2 log2(roughness)`` with trilinear filtering
 blends the two levels that bracket the roughness. Rougher lobes than ``r_1`` read the chain; smoother ones are
-importance-sampled from the map itself (``ibl_specular.glsl``), where blending with a mirror would be wrong. Each level is computed by
-``ggx_prefilter.comp.glsl`` from the map's box mip chain by filtered importance sampling (``SAMPLES`` per texel).
+importance-sampled from the map itself (``ibl_specular.glsl``), where blending with a mirror would be wrong. Each
+level is computed by ``ggx_prefilter.comp.glsl`` from the map's box mip chain by filtered importance sampling
+(``SAMPLES`` per texel).
+
+The split sum alone (this chain x the DFG term) is 10-19 % RMS off a path tracer on a studio panorama with small,
+very bright lights (``probeless eval ibl --lobe split_sum``): its lobe is the n = v = r one. So the renderer's
+``hybrid`` lobe takes the map's brightest texels out first (:func:`extract_lights`), sums them with the exact BRDF,
+and reads only the bounded-contrast residual through the chain.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from probeless.gl.textures import FILTERS, GL_RGBA32F, upload_cube
 
 SHADERS = Path(__file__).with_name("shaders")
 MAX_LEVELS = 6            # levels incl. the base (256 -> 8 texels a face at the roughest) [count]
-SAMPLES = (0, 256, 512, 1024, 1024, 1024)  # GGX samples per texel of each level [count]
+SAMPLES = (0, 128, 256, 512, 512, 512)  # GGX samples per texel of each level [count]
 
 
 def chain_levels(size: int) -> int:

@@ -1,11 +1,20 @@
 """GPU image-based lighting of virtual objects seen by a pinhole camera (paper §4.8).
 
-:class:`IblRenderer` draws each object with its material under its own environment (a samplerCube
-with its full mip chain, sampled with world directions: the GGX lobe importance-sampled with filtered, trilinear
-lookups, mirrors and refractions antialiased, ``probeless/gl/glsl/ibl_specular.glsl``) into linear colour in camera units, a mask and a
-depth image, and the contact shadow of each object on its supporting plane as a per-pixel ratio
+:class:`IblRenderer` draws each object with its material under its own environment (a samplerCube with its full
+mip chain, sampled with world directions) into linear colour in camera units, a mask and a depth image, and
+the contact shadow of each object on its supporting plane as a per-pixel ratio
 (occluded / unoccluded irradiance, by differential PRT: transfer vectors of a floor grid computed at
 load time by ray casting against the object, dotted with the object's SH each frame).
+
+Specular (``probeless/gl/glsl/ibl_specular.glsl``; GGX, alpha = roughness², Schlick Fresnel, separable Smith masking,
+Filament's multiple-scattering compensation unless ``energy_compensation=False``). The ``lobe`` argument:
+
+* ``hybrid`` (default): lobes rougher than the chain's first level (0.25) read the GGX-prefiltered chain
+  (:mod:`probeless.ibl.prefilter`, trilinear between levels) of the map minus its brightest texels, times the DFG
+  term (:mod:`probeless.ibl.dfg`), plus those texels as lights with the exact BRDF; smoother lobes and mirrors are
+  importance-sampled (visible normals, filtered lookups) with the samples spread over the pixel (antialiased);
+* ``split_sum``: the chain of the whole map times DFG (the classic split sum); ``sampled``: importance sampling at
+  every roughness; ``texel_sum``: exact sums over the texels of a 16-32 px level (a slow reference).
 """
 
 from __future__ import annotations
@@ -27,8 +36,8 @@ from probeless.ibl import prt
 from probeless.ibl.dfg import dfg_table
 from probeless.ibl.lighting import Lighting, glossy_faces
 from probeless.ibl.materials import shading
-from probeless.ibl.prefilter import GgxPrefilter, chain_levels, extract_lights, level_roughness
 from probeless.ibl.mesh_io import PlacedMesh
+from probeless.ibl.prefilter import GgxPrefilter, chain_levels, extract_lights, level_roughness
 
 SHADERS = Path(__file__).with_name("shaders")
 LOBES = ("hybrid", "split_sum", "texel_sum", "sampled")

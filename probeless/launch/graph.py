@@ -8,7 +8,7 @@
       - {file: camera.yaml, namespace: left, args: {fps: $(arg fps)}}
     nodes:
       - id: blur
-        node: image_transform                   # registered name or module:Class
+        node: image_transform                   # registered name, module:Class or path/to/file.py:Class
         inputs:
           image: {source: left/camera/image, queue_size: 2, policy: latest}
           tick: timer/hz/$(arg fps)             # built-in timer: timer/hz/N, timer/ms/N, timer/s/N

@@ -112,8 +112,9 @@ def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: lis
         fed = downstream(graph, roots)
         replace = [n for n in recordable if n not in swapped and n not in keep and n not in fed]
         if not replace:
-            raise BagError(f"{bag}: no node's outputs are all in the recording; name the nodes with --replace "
-                           f"(recorded topics: {sorted(played)})")
+            live = "; ".join(lines) + "; " if lines else ""
+            raise BagError(f"{bag}: no node left for the recording to replace: {live}name the nodes with "
+                           f"--replace (recorded topics: {sorted(played)})")
     for node_id in replace:
         absent = [t for t in outputs[node_id].values() if t not in played]
         if absent:

@@ -154,7 +154,7 @@ class Receiver(threading.Thread):
                 elif sock is self.control:
                     self._on_control(self.control.recv_multipart())
                 elif sock is self.tools:
-                    self._on_tool(self.tools.recv_multipart())
+                    self._on_tool(self.tools.recv_multipart(), poller)
                 elif sock not in self.pending:
                     self._receive(sock, poller)
         extra = [s for s in (self.control, self.tools) if s is not None]
@@ -176,7 +176,7 @@ class Receiver(threading.Thread):
         except zmq.ZMQError:
             pass  # the tool went away
 
-    def _on_tool(self, parts: list[bytes]) -> None:
+    def _on_tool(self, parts: list[bytes], poller: zmq.Poller) -> None:
         """One tool request ``[identity, b"", msgpack]``; replies now unless the handler defers it."""
         ident = parts[0]
         try:
@@ -185,7 +185,7 @@ class Receiver(threading.Thread):
             self._reply_tool(ident, {"ok": False, "error": "malformed request"})
             return
         if isinstance(req, dict) and req.get("op") in ("connect", "disconnect"):
-            reply = self._connect_tool(req)
+            reply = self._connect_tool(req, poller)
         else:
             try:
                 reply = self.tool_handler(req, ident)
@@ -194,12 +194,16 @@ class Receiver(threading.Thread):
         if reply is not None:
             self._reply_tool(ident, reply)
 
-    def _connect_tool(self, req: dict) -> dict:
+    def _connect_tool(self, req: dict, poller: zmq.Poller) -> dict:
         """Inputs reading ``topic`` also read a tool's publisher (``topic pub``), or stop doing so."""
         names = []
-        for sock, w in self.socks.items():
+        for sock, w in list(self.socks.items()):
             if w.topic != req.get("topic"):
                 continue
+            if req["op"] == "disconnect" and sock not in self.pending:
+                self._receive(sock, poller)  # what already arrived from the tool is kept, not cut off
+            if sock not in self.socks:
+                continue  # it reached end of stream meanwhile
             endpoint = str(req["lossless"] if self.queues[w.name].policy == "block" else req["lossy"])
             try:
                 (sock.connect if req["op"] == "connect" else sock.disconnect)(endpoint)

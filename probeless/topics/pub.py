@@ -146,7 +146,7 @@ def publish(graph: RunningGraph, topic_name: str, type_name: str, doc: Any, *, r
     except KeyboardInterrupt:
         pass
     finally:
-        time.sleep(0.1)  # let the last message leave before the sockets close
+        time.sleep(0.3)  # let the last message reach the subscribers' sockets; they read it before disconnecting
         for node in nodes:
             try:
                 request(graph.plan["nodes"][node]["ctl_endpoint"], {"op": "disconnect", **req}, timeout_s=1.0)

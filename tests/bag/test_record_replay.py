@@ -186,7 +186,11 @@ nodes:
     node: nodes_for_tests:TickSink
     inputs: {image: src/image}
 """)
+    # src's type differs from the recorded one: it runs live, so nothing is left to replay (issue 28)
     assert cli_main(["launch", str(g), "--replay", str(recorded)]) == 2
+    err = capsys.readouterr().err
+    assert "src: recorded as nodes_for_tests:Ticker, graph has nodes_for_tests:TickRelay: running" in err
+    assert cli_main(["launch", str(g), "--replay", str(recorded), "--replace", "src"]) == 2  # asked for: checked
     err = capsys.readouterr().err
     assert f"{recorded}: topic 'src/image' is sensor/Image, but input 'image' of node 'sink' expects core/Tick" in err
 

@@ -78,6 +78,13 @@ def test_export_types_and_round_trip(tmp_path, capsys):
                      "/rig/fisheye/camera_info": "sensor_msgs/msg/CameraInfo",
                      "/rig/fisheye_from_rgbd": "geometry_msgs/msg/PoseStamped",
                      "/slam/model/points": "sensor_msgs/msg/PointCloud2"}
+    (mcap_file,) = out.glob("*.mcap")   # what ros2 bag play / Foxglove's ROS 2 decoder expect: profile ros2, cdr +
+    with BagReader(mcap_file) as r:    # ros2msg schemas that carry their dependencies
+        assert r.profile == "ros2"
+        for info in r.topics().values():
+            assert (info.message_encoding, info.schema_encoding) == ("cdr", "ros2msg")
+        image, _ = next(r.records("/rig/rgb"))
+        assert b"MSG: std_msgs/Header" in r.schema_of(image).data
     pts = np.frombuffer(cloud.data.tobytes(), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4")])
     src_cloud = next(m for t, m in msgs if t == "slam/model/points")
     assert np.array_equal(np.stack([pts["x"], pts["y"], pts["z"]], 1), src_cloud.points)

@@ -38,7 +38,8 @@ def rays(sub: int = 1):
     """(H, W, sub², 3) unit world rays through a sub x sub grid in every pixel (centres when sub = 1)."""
     o = (np.arange(sub) + 0.5) / sub - 0.5
     v, u = np.mgrid[0:H, 0:W].astype(float)
-    uu, vv = np.broadcast_arrays(u[..., None, None] + o[None, None, None, :], v[..., None, None] + o[None, None, :, None])
+    uu, vv = np.broadcast_arrays(u[..., None, None] + o[None, None, None, :],
+                                 v[..., None, None] + o[None, None, :, None])
     d = np.stack([(uu - K[0, 2]) / F, (vv - K[1, 2]) / F, np.ones_like(uu)], axis=-1).reshape(H, W, sub * sub, 3)
     d = d @ POSE[:3, :3].T
     return d / np.linalg.norm(d, axis=-1, keepdims=True)

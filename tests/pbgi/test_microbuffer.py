@@ -162,8 +162,11 @@ def reference_micro_buffer(nodes, p, n, micro: int, idx_bits: int, log_dmin: flo
 
 
 def _code(d, i, idx_bits, log_dmin, log_drange, rank=0.0) -> int:
-    """pbgi_common.glsl's texel key: log depth, then the nearness rank (3 bits), then the node slot."""
-    u = min(max((math.log(d) - log_dmin) / log_drange, 0.0), 1.0)
+    """pbgi_common.glsl's texel key: log depth pushed back by RIM_DEPTH x the nearness rank, then the nearness rank
+    (3 bits), then the node slot."""
+    from probeless.pbgi.microbuffer import RIM_DEPTH
+
+    u = min(max((math.log(d) + RIM_DEPTH * rank - log_dmin) / log_drange, 0.0), 1.0)
     r = min(int(rank * 8), 7)
     return (int(u * ((1 << (32 - idx_bits - 3)) - 1)) << (idx_bits + 3)) | (r << idx_bits) | int(i)
 
