@@ -23,7 +23,7 @@ from probeless.messages.geometry import Floorplan, PoseStamped
 from probeless.messages.header import Clock, Header, Tick
 from probeless.messages.lighting import BrightnessDelta, Cubemap, CubemapLevel, SHCoefficients
 from probeless.messages.mesh import HdrPointCloud, PointCloud, TriangleMesh
-from probeless.messages.sensor import CameraInfo, DepthImage, Image
+from probeless.messages.sensor import CameraInfo, DepthImage, Image, Imu
 
 __all__ = [
     # machinery
@@ -34,7 +34,7 @@ __all__ = [
     # diagnostics
     "NodeStatus", "StageTiming", "InputCounters",
     # sensor
-    "Image", "DepthImage", "CameraInfo",
+    "Image", "DepthImage", "CameraInfo", "Imu",
     # geometry
     "PoseStamped", "Floorplan",
     # mesh

@@ -129,3 +129,26 @@ class CameraInfo(Message):
             raise SchemaError(f"CameraInfo.xi: must be finite, >= 0 and only non-zero for omnidir, got {self.xi}")
         if self.model == "ocam" and (len(self.ocam_poly) == 0 or len(self.ocam_invpoly) == 0):
             raise SchemaError("CameraInfo.ocam_poly: ocam model needs non-empty ocam_poly and ocam_invpoly")
+
+
+@message("sensor/Imu", version=1)
+@dataclass(frozen=True)
+class Imu(Message):
+    """One inertial sample, as ROS ``sensor_msgs/Imu`` carries it (kept as recorded, not used by the pipeline).
+
+    A covariance whose first element is -1 means "this quantity is not measured" (ROS convention);
+    all zeros means "unknown covariance".
+    """
+
+    header: Header      # stamp = sample time; frame_id = the IMU's frame
+    orientation: np.ndarray = array("float64", (4,))  # quaternion [x, y, z, w] of frame_id in its reference [-]
+    orientation_covariance: np.ndarray = array("float64", (9,))  # row-major 3x3 about x, y, z [rad²]
+    angular_velocity: np.ndarray = array("float64", (3,))  # about x, y, z of frame_id [rad/s]
+    angular_velocity_covariance: np.ndarray = array("float64", (9,))  # row-major 3x3 [(rad/s)²]
+    linear_acceleration: np.ndarray = array("float64", (3,))  # along x, y, z of frame_id, gravity included [m/s²]
+    linear_acceleration_covariance: np.ndarray = array("float64", (9,))  # row-major 3x3 [(m/s²)²]
+
+    def validate(self) -> None:
+        for name in ("angular_velocity", "linear_acceleration"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise SchemaError(f"Imu.{name}: contains NaN or inf")

@@ -24,6 +24,7 @@ from probeless.messages import (
     HdrPointCloud,
     Header,
     Image,
+    Imu,
     InputCounters,
     Message,
     NodeStatus,
@@ -56,6 +57,13 @@ def depth_image() -> DepthImage:
 def camera_info() -> CameraInfo:
     K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
     return CameraInfo(header("fisheye"), 640, 480, "omnidir", K, D=np.array([-0.1, 0.01, 0.001, -0.002]), xi=0.9)
+
+
+def imu() -> Imu:
+    rng = _rng()
+    q = rng.normal(size=4)
+    return Imu(header("imu"), q / np.linalg.norm(q), np.diag([1e-3, 2e-3, 3e-3]).ravel(), rng.normal(size=3),
+               np.full(9, 1e-4), rng.normal(size=3) + [0.0, 0.0, 9.81], np.zeros(9))
 
 
 def pose_stamped() -> PoseStamped:
@@ -136,6 +144,7 @@ EXAMPLES: dict[str, Callable[[], Message]] = {
     "sensor/Image": image,
     "sensor/DepthImage": depth_image,
     "sensor/CameraInfo": camera_info,
+    "sensor/Imu": imu,
     "geometry/PoseStamped": pose_stamped,
     "geometry/Floorplan": floorplan,
     "mesh/PointCloud": point_cloud,

@@ -16,7 +16,7 @@ from probeless.errors import BagError
 from probeless.geom.rotation import matrix_from_quat, quat_from_matrix, transform_from
 from probeless.messages.geometry import PoseStamped
 from probeless.messages.header import Header
-from probeless.messages.sensor import CameraInfo, DepthImage, Image
+from probeless.messages.sensor import CameraInfo, DepthImage, Image, Imu
 
 # ROS image encodings -> (numpy dtype, channels, our Image encoding); 16UC1/32FC1 are depth
 COLOUR_ENCODINGS = {"rgb8": ("uint8", 3, "rgb8"), "bgr8": ("uint8", 3, "bgr8"), "rgba8": ("uint8", 4, "rgba8"),
@@ -156,6 +156,23 @@ def pose_from_ros(msg: Any, topic: str, world: str, child: str) -> PoseStamped:
     except RosConvertError as exc:
         raise RosConvertError(f"{topic}: {exc}") from None
     return PoseStamped(Header(stamp_ns(msg.header), world), child, T)
+
+
+def _vec(v: Any) -> np.ndarray:
+    return np.array([v.x, v.y, v.z], dtype=np.float64)
+
+
+def imu_from_ros(msg: Any, topic: str, frame_id: str) -> Imu:
+    """sensor_msgs/Imu -> Imu, every field kept as recorded (covariances row-major, -1 = not measured)."""
+    q = msg.orientation
+    try:
+        return Imu(Header(stamp_ns(msg.header), frame_id), np.array([q.x, q.y, q.z, q.w], dtype=np.float64),
+                   np.asarray(msg.orientation_covariance, dtype=np.float64).reshape(9), _vec(msg.angular_velocity),
+                   np.asarray(msg.angular_velocity_covariance, dtype=np.float64).reshape(9),
+                   _vec(msg.linear_acceleration),
+                   np.asarray(msg.linear_acceleration_covariance, dtype=np.float64).reshape(9))
+    except (ValueError, BagError) as exc:
+        raise RosConvertError(f"{topic}: cannot convert sensor_msgs/Imu ({exc})") from None
 
 
 def quat_xyzw(T: np.ndarray) -> np.ndarray:

@@ -28,7 +28,7 @@ ROS_ENCODING = {"rgb8": "rgb8", "bgr8": "bgr8", "rgba8": "rgba8", "bgra8": "bgra
                 "monof16": "32FC1", "rgbf16": "32FC3", "rgbaf16": "32FC4"}
 ROS_TYPES = {"sensor/Image": "sensor_msgs/msg/Image", "sensor/DepthImage": "sensor_msgs/msg/Image",
              "sensor/CameraInfo": "sensor_msgs/msg/CameraInfo", "geometry/PoseStamped": "geometry_msgs/msg/PoseStamped",
-             "mesh/PointCloud": "sensor_msgs/msg/PointCloud2"}
+             "mesh/PointCloud": "sensor_msgs/msg/PointCloud2", "sensor/Imu": "sensor_msgs/msg/Imu"}
 
 
 class _Ros2:
@@ -99,6 +99,17 @@ class _Ros2:
             header=self.header(msg.header), child_frame_id=msg.child_frame_id,
             transform=self.T["geometry_msgs/msg/Transform"](translation=v, rotation=q))
         return self.T["tf2_msgs/msg/TFMessage"](transforms=[ts])
+
+    def imu(self, msg: Any) -> Any:
+        q, V = msg.orientation, self.T["geometry_msgs/msg/Vector3"]
+        return self.T["sensor_msgs/msg/Imu"](
+            header=self.header(msg.header),
+            orientation=self.T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3]),
+            orientation_covariance=msg.orientation_covariance.copy(),
+            angular_velocity=V(*(float(v) for v in msg.angular_velocity)),
+            angular_velocity_covariance=msg.angular_velocity_covariance.copy(),
+            linear_acceleration=V(*(float(v) for v in msg.linear_acceleration)),
+            linear_acceleration_covariance=msg.linear_acceleration_covariance.copy())
 
     def cloud(self, msg: Any) -> Any:
         n = len(msg.points)
@@ -175,6 +186,8 @@ def _one(r: Any, ch: Any, rec: Any, ros: _Ros2, put: Any, summary: ExportSummary
             put(name, rtype, ros.pose(msg), t)
             static = "_from_" in topic.rsplit("/", 1)[-1]
             put("/tf_static" if static else "/tf", "tf2_msgs/msg/TFMessage", ros.tf(msg), t)
+        elif bm.type_name == "sensor/Imu":
+            put(name, rtype, ros.imu(msg), t)
         else:
             put(name, rtype, ros.cloud(msg), t)
     except (KeyError, ValueError, TypeError) as exc:

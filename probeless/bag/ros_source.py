@@ -22,6 +22,7 @@ from probeless.bag.ros_convert import (
     camera_info_from_ros,
     compressed_from_ros,
     image_from_ros,
+    imu_from_ros,
     pose_from_ros,
     register_depth,
     stamp_ns,
@@ -36,7 +37,8 @@ INSTALL_HINT = "reading and writing ROS bags needs the rosbags package: pip inst
 IMAGE_TYPES = {"sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"}
 POSE_TYPES = {"geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry"}
 TF_TYPE = "tf2_msgs/msg/TFMessage"
-CONVERTED = IMAGE_TYPES | POSE_TYPES | {TF_TYPE, "sensor_msgs/msg/CameraInfo"}
+IMU_TYPE = "sensor_msgs/msg/Imu"
+CONVERTED = IMAGE_TYPES | POSE_TYPES | {TF_TYPE, IMU_TYPE, "sensor_msgs/msg/CameraInfo"}
 
 
 def require_rosbags() -> Any:
@@ -237,8 +239,10 @@ class RosBag:
             child = getattr(msg, "child_frame_id", "") or rt.RIG_FRAME
             pose = pose_from_ros(msg, topic, world, child)
             return [(rt.POSE if role.startswith("@") else role, pose)]
+        if t == IMU_TYPE:
+            return [(role, imu_from_ros(msg, topic, rt.normalise_frame(msg.header.frame_id) or "imu"))]
         raise RosConvertError(f"{topic}: message type {t} cannot be converted (supported: Image, CompressedImage, "
-                              "CameraInfo, TFMessage, PoseStamped, Odometry)")
+                              "CameraInfo, TFMessage, PoseStamped, Odometry, Imu)")
 
     def _frame_of(self, role: str, msg: Any) -> str:
         """Our frame of a camera topic: the rig's names (rgbd, fisheye), the header's with preset probeless."""

@@ -16,6 +16,7 @@ from probeless.errors import BagError
 RGB, DEPTH, RGB_INFO = "rig/rgb", "rig/depth", "rig/rgbd/camera_info"
 FISHEYE, FISHEYE_INFO = "rig/fisheye", "rig/fisheye/camera_info"
 EXTRINSICS, GT_POSE, POSE = "rig/fisheye_from_rgbd", "rig/gt/rgbd_pose", "rig/pose"
+IMU, GYRO, ACCEL = "rig/imu", "rig/imu/gyro", "rig/imu/accel"   # kept as recorded; no node consumes them
 DEPTH_RAW, DEPTH_INFO, TF, TF_STATIC, VIEWER_TF = "@depth_raw", "@depth_info", "@tf", "@tf_static", "@viewer_tf"
 IGNORE = "@ignore"
 RIG_FRAME, FISHEYE_FRAME, WORLD_FRAME = "rgbd", "fisheye", "world"
@@ -36,7 +37,8 @@ def _realsense(ns: str) -> dict[str, str]:
             f"{ns}/aligned_depth_to_color/image_raw/compressedDepth": DEPTH,
             f"{ns}/aligned_depth_to_color/camera_info": IGNORE,
             f"{ns}/depth/image_rect_raw": DEPTH_RAW, f"{ns}/depth/image_rect_raw/compressedDepth": DEPTH_RAW,
-            f"{ns}/depth/camera_info": DEPTH_INFO}
+            f"{ns}/depth/camera_info": DEPTH_INFO,
+            f"{ns}/imu": IMU, f"{ns}/gyro/sample": GYRO, f"{ns}/accel/sample": ACCEL}
 
 
 # RealSense Viewer recordings (ROS 1 bags written by librealsense): sensor_0 = stereo module (depth),
@@ -44,7 +46,8 @@ def _realsense(ns: str) -> dict[str, str]:
 VIEWER = {"/device_0/sensor_1/Color_0/image/data": RGB, "/device_0/sensor_1/Color_0/info/camera_info": RGB_INFO,
           "/device_0/sensor_0/Depth_0/image/data": DEPTH_RAW,
           "/device_0/sensor_0/Depth_0/info/camera_info": DEPTH_INFO,
-          "/device_0/sensor_1/Color_0/tf/0": VIEWER_TF}
+          "/device_0/sensor_1/Color_0/tf/0": VIEWER_TF,
+          "/device_0/sensor_2/Gyro_0/imu/data": GYRO, "/device_0/sensor_2/Accel_0/imu/data": ACCEL}
 
 PRESETS: dict[str, dict] = {
     "realsense": {"topics": {**_realsense("/camera"), **_realsense("/camera/camera"), **VIEWER,
@@ -57,7 +60,7 @@ PRESETS: dict[str, dict] = {
     # TUM RGB-D ROS bags: registered depth in metres, ground truth as tf world -> kinect
     "tum": {"topics": {"/camera/rgb/image_color": RGB, "/camera/rgb/camera_info": RGB_INFO,
                        "/camera/depth/image": DEPTH, "/camera/depth_registered/image_raw": DEPTH,
-                       "/camera/depth/camera_info": IGNORE, "/tf": TF, "/tf_static": TF_STATIC},
+                       "/camera/depth/camera_info": IGNORE, "/imu": IMU, "/tf": TF, "/tf_static": TF_STATIC},
             "world": "world", "ground_truth": True},
     # bags written by `probeless bag export --format ros2`: /TOPIC -> TOPIC, header frames kept
     "probeless": {"topics": {"/tf": IGNORE, "/tf_static": IGNORE}, "world": "world", "ground_truth": False,

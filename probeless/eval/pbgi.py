@@ -14,7 +14,8 @@ raw (the reference's noise is in them).
 The decal rooms (:mod:`probeless.pbgi.room_decals`: ``red_wall`` with a poster on the panel, a rug under the sphere
 and the ceiling lamp as decals, coplanar in ``decals``, 0.5, 1 and 5 mm in front of their surfaces in
 ``decals_0.5mm`` ...) also report ``vs_coplanar``: the relative RMS luminance difference of the PBGI image from
-the PBGI image of the coplanar room (same material; the goal: within 1 %) and the ratio of their mean luminances.
+the PBGI image of the coplanar room (same material; the goal: within 1 %), the ratio of their mean luminances and
+that of Mitsuba's images (``reference_mean_ratio``: how much the step truly changes the light).
 ``pbgi_le_envmap`` per room: whether PBGI's error is at most the envmap mode's in every row (corrected and near the
 panel).
 Mitsuba renders are cached under ``out/cache/mitsuba/`` (``--no-cache`` renders again).
@@ -75,24 +76,29 @@ def _comparison(name: str, ns):
 
 
 def coplanar_images(brdfs: list, ns) -> dict:
-    """{material key: (PBGI image, mask)} of the coplanar ``decals`` room (what the offset rooms should match)."""
+    """{material key: ((PBGI image, mask), (Mitsuba image, mask))} of the coplanar ``decals`` room (what the offset
+    rooms should match; Mitsuba's own change says how much the step moves the truth)."""
     from probeless.pbgi.compare import material_key
 
     comp = _comparison("decals", ns)
     try:
-        return {material_key(b): comp.pbgi(b) for b in brdfs}
+        return {material_key(b): (comp.pbgi(b), comp.reference(b)) for b in brdfs}
     finally:
         comp.release()
 
 
-def _vs_coplanar(image, mask, coplanar) -> dict:
+def _vs_coplanar(images: dict, mask, coplanar) -> dict:
+    """PBGI against coplanar PBGI (``rms``, ``mean_ratio``), and Mitsuba's mean ratio (``reference_mean_ratio``)."""
     from probeless.color import luminance
     from probeless.pbgi.compare import relative_rms
 
-    ref, ref_mask = coplanar
-    both = mask & ref_mask
-    return {"rms": relative_rms(image, ref, both),
-            "mean_ratio": float(luminance(image[both]).mean() / luminance(ref[both]).mean())}
+    (ours, ours_mask), (ref, ref_mask) = coplanar
+    both = mask & ours_mask & ref_mask
+
+    def ratio(a, b):
+        return float(luminance(a[both]).mean() / luminance(b[both]).mean())
+    return {"rms": relative_rms(images["pbgi"], ours, both), "mean_ratio": ratio(images["pbgi"], ours),
+            "reference_mean_ratio": ratio(images["reference"], ref)}
 
 
 def evaluate_room(name: str, brdfs: list, ns, tick, images: dict | None, coplanar: dict | None = None) -> dict:
@@ -116,7 +122,7 @@ def evaluate_room(name: str, brdfs: list, ns, tick, images: dict | None, coplana
                                         for m in r.errors}
                 row["near_wall_pixels"] = int(near.sum())
             if coplanar is not None:
-                row["vs_coplanar"] = _vs_coplanar(r.images["pbgi"], r.mask, coplanar[material_key(brdf)])
+                row["vs_coplanar"] = _vs_coplanar(r.images, r.mask, coplanar[material_key(brdf)])
             rows[material_key(brdf)] = row
             if images is not None:
                 images[material_key(brdf)] = (r.images, r.mask)
@@ -144,14 +150,14 @@ def format_table(result: dict) -> str:
         has_step = any("vs_coplanar" in row for row in room["materials"].values())
         lines.append(f"  {'material':<12}{'noise':>8}" + "".join(f"{m:>18}" for m in shown)
                      + ("  near wall: " + " ".join(f"{m:>7}" for m in shown[:3]) if has_near else "")
-                     + ("   vs coplanar: rms  mean" if has_step else ""))
+                     + ("   vs coplanar: rms  mean (Mitsuba)" if has_step else ""))
         for key, row in room["materials"].items():
             cells = "".join(f"{row['corrected'][m]:>9.3f} ({row['errors'][m]:.3f})" if m in row["errors"]
                             else f"{'-':>18}" for m in shown)
             near = ("  " + " " * 11 + " ".join(f"{row['near_wall'][m]:>7.3f}" for m in shown[:3])
                     if "near_wall" in row else "")
-            step = (f"  {row['vs_coplanar']['rms']:>8.4f} {row['vs_coplanar']['mean_ratio']:>6.4f}"
-                    if "vs_coplanar" in row else "")
+            st = row.get("vs_coplanar")
+            step = (f"  {st['rms']:>8.4f} {st['mean_ratio']:>6.4f} ({st['reference_mean_ratio']:.4f})" if st else "")
             lines.append(f"  {key:<12}{row['noise']:>8.3f}{cells}{near}{step}")
         lines.append(f"  PBGI <= envmap in every row: {'yes' if room['pbgi_le_envmap'] else 'NO'}")
     return "\n".join(lines)

@@ -99,13 +99,10 @@ class Comparison:
         """The sphere in material ``brdf`` (a :class:`~probeless.pbgi.materials.Brdf`) by every method."""
         import time
 
-        from probeless.pbgi.reference import render_reference
         from probeless.pbgi.render import PbgiObject
 
         t0 = time.perf_counter()
-        (ref_a, ref_mask), (ref_b, _) = (render_reference(self.room, brdf, self.K, self.pose, self.size, self.size,
-                                                          spp=max(1, self.spp // 2), seed=seed, cache=self.cache)
-                                         for seed in (0, 1))
+        (ref_a, ref_mask), (ref_b, _) = self._references(brdf)
         ref = 0.5 * (ref_a + ref_b)
         images, seconds = {"reference": ref}, {"reference": time.perf_counter() - t0}
         runs = [("pbgi", 0.2, None), ("envmap", 0.2, "envmap")]
@@ -127,6 +124,17 @@ class Comparison:
                                                               np.sqrt(np.mean(luminance(ref[mask]) ** 2)))
         corrected = {m: float(np.sqrt(max(0.0, e * e - noise * noise))) for m, e in errors.items()}
         return Rendered(images, mask, errors, corrected, float(noise), seconds)
+
+    def _references(self, brdf) -> list:
+        from probeless.pbgi.reference import render_reference
+
+        return [render_reference(self.room, brdf, self.K, self.pose, self.size, self.size, spp=max(1, self.spp // 2),
+                                 seed=seed, cache=self.cache) for seed in (0, 1)]
+
+    def reference(self, brdf) -> tuple[np.ndarray, np.ndarray]:
+        """(Mitsuba image, mask) of the sphere in ``brdf``: the mean of the two seeds :meth:`render` compares with."""
+        (a, mask), (b, _) = self._references(brdf)
+        return 0.5 * (a + b), mask
 
     def pbgi(self, brdf) -> tuple[np.ndarray, np.ndarray]:
         """(image, mask) of the sphere in ``brdf`` by our PBGI alone, as :meth:`render`'s ``pbgi`` (no reference)."""

@@ -99,10 +99,26 @@ class _Builder:
                 transform=self.T["geometry_msgs/msg/Transform"](translation=v, rotation=self._quat(T[:3, :3]))))
         return self.T["tf2_msgs/msg/TFMessage"](transforms=ts)
 
+    def imu(self, stamp, s):
+        V = self.T["geometry_msgs/msg/Vector3"]
+        q = s["q"]
+        return self.T["sensor_msgs/msg/Imu"](
+            header=self.header(stamp, "imu"), orientation=self.T["geometry_msgs/msg/Quaternion"](*q),
+            orientation_covariance=s["q_cov"], angular_velocity=V(*s["w"]), angular_velocity_covariance=s["w_cov"],
+            linear_acceleration=V(*s["a"]), linear_acceleration_covariance=s["a_cov"])
+
     def pose(self, stamp, frame, T):
         p = self.T["geometry_msgs/msg/Point"](x=T[0, 3], y=T[1, 3], z=T[2, 3])
         return self.T["geometry_msgs/msg/PoseStamped"](header=self.header(stamp, frame), pose=self.T[
             "geometry_msgs/msg/Pose"](position=p, orientation=self._quat(T[:3, :3])))
+
+
+def imu_sample(stamp: int) -> dict:
+    """A deterministic IMU sample for stamp (distinct values per field, so a swapped field shows)."""
+    rng = np.random.default_rng(stamp % 2**32)
+    q = rng.normal(size=4)
+    return {"q": q / np.linalg.norm(q), "q_cov": rng.uniform(0, 1e-3, 9), "w": rng.normal(size=3),
+            "w_cov": rng.uniform(0, 1e-4, 9), "a": rng.normal(size=3) + [0, 0, 9.81], "a_cov": np.full(9, -1.0)}
 
 
 def compressed_depth(depth: np.ndarray) -> bytes:
@@ -167,10 +183,6 @@ def write_rig_bag(path: Path, kind: str, *, frames: int = 3, fisheye: int = 2, c
             if raw_depth:
                 put("/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo", b.info(t, DEPTH_FRAME, w, h, K_RGB), rx)
             put("/ground_truth/pose", "geometry_msgs/msg/PoseStamped", b.pose(t, "world", f["pose"]), rx)
-            put("/camera/imu", "sensor_msgs/msg/Imu", ts.types["sensor_msgs/msg/Imu"](
-                header=b.header(t, "imu"), orientation=b._quat(np.eye(3)), orientation_covariance=np.zeros(9),
-                angular_velocity=ts.types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
-                angular_velocity_covariance=np.zeros(9),
-                linear_acceleration=ts.types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=9.81),
-                linear_acceleration_covariance=np.zeros(9)), rx)
+            put("/camera/imu", "sensor_msgs/msg/Imu", b.imu(t, imu_sample(t)), rx)
+            put("/camera/status", "std_msgs/msg/String", ts.types["std_msgs/msg/String"](data="ok"), rx)
     return {"seven": seven, "fisheye": fish, "K_fish": K_fish}

@@ -21,6 +21,7 @@ from probeless.messages import (  # noqa: E402
     DepthImage,
     Header,
     Image,
+    Imu,
     PointCloud,
     PoseStamped,
 )
@@ -38,7 +39,9 @@ def _recording(path):
                  ("slam/depth_m", DepthImage(Header(t, "rgbd"), fr["depth"].astype(np.float32) / 1000, 1.0)),
                  ("rig/ir", Image(Header(t, "rgbd"), (fr["depth"] * 7)[:, :, None], "mono16")),
                  ("compositor/image", Image(Header(t, "rgbd"), fr["rgb"][:, ::-1].copy(), "rgb8")),
-                 ("slam/pose", PoseStamped(Header(t, "world"), "rgbd", fr["pose"]))]
+                 ("slam/pose", PoseStamped(Header(t, "world"), "rgbd", fr["pose"])),
+                 ("rig/imu", Imu(Header(t + 1000, "imu"), np.array([0.1, -0.2, 0.3, 0.927]), rng.uniform(0, 1, 9),
+                                 rng.normal(size=3), rng.uniform(0, 1, 9), rng.normal(size=3), np.full(9, -1.0)))]
     t = f[0]["stamp"]
     K = np.array([[585.0, 0, 320], [0, 585, 240], [0, 0, 1]])
     msgs += [("rig/rgbd/camera_info", CameraInfo(Header(t, "rgbd"), 640, 480, "pinhole", K,
@@ -77,7 +80,7 @@ def test_export_types_and_round_trip(tmp_path, capsys):
                      "/rig/rgbd/camera_info": "sensor_msgs/msg/CameraInfo",
                      "/rig/fisheye/camera_info": "sensor_msgs/msg/CameraInfo",
                      "/rig/fisheye_from_rgbd": "geometry_msgs/msg/PoseStamped",
-                     "/slam/model/points": "sensor_msgs/msg/PointCloud2"}
+                     "/slam/model/points": "sensor_msgs/msg/PointCloud2", "/rig/imu": "sensor_msgs/msg/Imu"}
     (mcap_file,) = out.glob("*.mcap")   # what ros2 bag play / Foxglove's ROS 2 decoder expect: profile ros2, cdr +
     with BagReader(mcap_file) as r:    # ros2msg schemas that carry their dependencies
         assert r.profile == "ros2"
@@ -107,6 +110,10 @@ def test_export_types_and_round_trip(tmp_path, capsys):
                 assert getattr(a, "encoding", None) == getattr(b, "encoding", None)
             elif isinstance(b, PoseStamped):
                 assert np.max(np.abs(a.target_from_source - b.target_from_source)) < 1e-9
+            elif isinstance(b, Imu):   # float64 in CDR: every field bit-equal
+                for name in ("orientation", "orientation_covariance", "angular_velocity",
+                             "angular_velocity_covariance", "linear_acceleration", "linear_acceleration_covariance"):
+                    assert np.array_equal(getattr(a, name), getattr(b, name)), name
             else:
                 assert (a.model, a.width, a.height) == (b.model, b.width, b.height)
                 assert np.array_equal(a.K, b.K) and np.array_equal(a.D, b.D)

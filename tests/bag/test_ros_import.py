@@ -12,7 +12,15 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from ros_bags import COLOUR_FROM_DEPTH, COLOUR_FROM_FISHEYE, K_RGB, SEVEN, T0_NS, write_rig_bag  # noqa: E402
+from ros_bags import (  # noqa: E402
+    COLOUR_FROM_DEPTH,
+    COLOUR_FROM_FISHEYE,
+    K_RGB,
+    SEVEN,
+    T0_NS,
+    imu_sample,
+    write_rig_bag,
+)
 
 from probeless.bag.reader import BagReader  # noqa: E402
 from probeless.bag.ros_import import import_bag  # noqa: E402
@@ -40,9 +48,16 @@ def _read(path):
 def test_import_realsense_bag_matches_the_source_frames(tmp_path, kind, compressed):
     src, wrote = _bag(tmp_path, kind, frames=2, fisheye=1, compressed=compressed)
     summary = import_bag(src, tmp_path / "out.mcap", preset="realsense", maps=GT_MAP)
-    assert summary.skipped == {"/camera/imu": "sensor_msgs/msg/Imu: named by no preset or --map"}
+    assert summary.skipped == {"/camera/status": "std_msgs/msg/String: named by no preset or --map"}
     got = _read(tmp_path / "out.mcap")
     seven, fish = wrote["seven"], wrote["fisheye"]
+    for (_, imu), f in zip(got["rig/imu"], seven, strict=True):    # Imu kept as recorded, every field
+        want = imu_sample(f["stamp"])
+        assert imu.header.stamp_ns == f["stamp"] and imu.header.frame_id == "imu"
+        for ours, key in (("orientation", "q"), ("orientation_covariance", "q_cov"), ("angular_velocity", "w"),
+                          ("angular_velocity_covariance", "w_cov"), ("linear_acceleration", "a"),
+                          ("linear_acceleration_covariance", "a_cov")):
+            np.testing.assert_array_equal(getattr(imu, ours), want[key], err_msg=ours)
     assert [m.header.stamp_ns for _, m in got["rig/rgb"]] == [f["stamp"] for f in seven]   # header stamps kept
     for (_, rgb), (_, depth), (_, pose), f in zip(got["rig/rgb"], got["rig/depth"], got["rig/gt/rgbd_pose"], seven):
         assert rgb.encoding == "rgb8" and np.array_equal(rgb.data, f["rgb"])    # jpeg: cv2's decode of the file
@@ -95,7 +110,7 @@ def test_cli_lists_skipped_topics_and_time_window(tmp_path, capsys):
     assert main(["bag", "import", str(src), "-o", str(out), "--preset", "realsense", "--start", "0.03",
                  "--duration", "0.033", "--no-progress"]) == 0
     text = capsys.readouterr().out
-    assert "skipped /camera/imu (sensor_msgs/msg/Imu: named by no preset or --map)" in text
+    assert "skipped /camera/status (std_msgs/msg/String: named by no preset or --map)" in text
     assert "skipped /ground_truth/pose" in text
     rgb = _read(out)["rig/rgb"]
     assert [m.header.stamp_ns for _, m in rgb] == [wrote["seven"][1]["stamp"]]

@@ -36,7 +36,7 @@ def test_rosbag_source_runs_the_full_pipeline(tmp_path):
         cwd=REPO, capture_output=True, text=True, timeout=400)
     assert proc.returncode == 0, proc.stderr[-3000:]
     log = proc.stdout + proc.stderr
-    assert "played" in log and "skipping /camera/imu" in log   # the unnamed topic is listed as skipped
+    assert "played" in log and "skipping /camera/status" in log   # the unnamed topic is listed as skipped
     cap = cv2.VideoCapture(str(out / "augmented.mp4"))
     frames = []
     while True:
