@@ -17,6 +17,7 @@ from typing import Any, Iterable, Iterator
 import numpy as np
 
 from probeless.bag import ros_topics as rt
+from probeless.bag.ros_reader import open_any_reader
 from probeless.bag.ros_convert import (
     RosConvertError,
     camera_info_from_ros,
@@ -98,7 +99,6 @@ class RosBag:
     def __init__(self, path: str | Path, preset: str | None = None, maps: Iterable[str] = (), *,
                  time_offset_ns: int = 0, only: Iterable[str] | None = None):
         require_rosbags()
-        from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
 
         self.path = Path(path)
@@ -110,11 +110,7 @@ class RosBag:
         self.ground_truth = bool(preset and rt.PRESETS[preset]["ground_truth"])
         self.identity = bool(preset and rt.PRESETS[preset].get("identity"))
         self.offset = int(time_offset_ns)
-        try:
-            self.reader = AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
-            self.reader.open()
-        except Exception as exc:  # rosbags raises its own ReaderError, ValueError, KeyError ... on bad files
-            raise BagError(f"{self.path}: not a readable ROS bag ({type(exc).__name__}: {exc})") from None
+        self.reader, unparsed = open_any_reader(self.path, get_typestore(Stores.ROS2_HUMBLE))
         self.roles: dict[str, str] = {}        # ros topic -> probeless topic or @role
         self.skipped: dict[str, str] = {}      # ros topic -> why
         only = None if only is None else set(only)
@@ -122,7 +118,9 @@ class RosBag:
             role = self.table.get(c.topic)
             if role is None and self.identity:
                 role = c.topic.lstrip("/")
-            if role is None or role == rt.IGNORE:
+            if c.msgtype in unparsed:
+                self.skipped[c.topic] = f"{c.msgtype}: {unparsed[c.msgtype]}"
+            elif role is None or role == rt.IGNORE:
                 self.skipped[c.topic] = f"{c.msgtype}: named by no preset or --map" if role is None else \
                     f"{c.msgtype}: not needed"
             elif c.msgtype not in CONVERTED and role != rt.VIEWER_TF:

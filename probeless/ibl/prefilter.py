@@ -1,7 +1,7 @@
 """The GGX-prefiltered radiance chain of a cubemap, on the GPU (split-sum radiance, Karis 2013).
 
 Level k >= 1 of the chain (face size S >> k) holds the map prefiltered for perceptual roughness
-``r_k = 2^(-(levels - 1 - k) / 2)`` (GGX alpha = r² doubles from level to level: 1/16, 1/8, 1/4, 1/2, 1 for six
+``r_k = 2^(-(levels - 1 - k) / 2)`` (GGX alpha = r² doubles from level to level: 1/32, 1/16, ..., 1 for seven
 levels; level 0 is the map itself), so a lookup at ``lod = levels - 1 + 2 log2(roughness)`` with trilinear filtering
 blends the two levels that bracket the roughness. Rougher lobes than ``r_1`` read the chain; smoother ones are
 importance-sampled from the map itself (``ibl_specular.glsl``), where blending with a mirror would be wrong. Each
@@ -26,8 +26,8 @@ from probeless.gl.programs import load_program
 from probeless.gl.textures import FILTERS, GL_RGBA32F, upload_cube
 
 SHADERS = Path(__file__).with_name("shaders")
-MAX_LEVELS = 6            # levels incl. the base (256 -> 8 texels a face at the roughest) [count]
-SAMPLES = (0, 128, 256, 512, 512, 512)  # GGX samples per texel of each level [count]
+MAX_LEVELS = 7            # levels incl. the base (256 -> 4 texels a face at the roughest) [count]
+SAMPLES = (0, 128, 256, 512, 512, 512, 512)  # GGX samples per texel of each level [count]
 
 
 def chain_levels(size: int) -> int:

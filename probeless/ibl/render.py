@@ -9,7 +9,7 @@ load time by ray casting against the object, dotted with the object's SH each fr
 Specular (``probeless/gl/glsl/ibl_specular.glsl``; GGX, alpha = roughness², Schlick Fresnel, separable Smith masking,
 Filament's multiple-scattering compensation unless ``energy_compensation=False``). The ``lobe`` argument:
 
-* ``hybrid`` (default): lobes rougher than the chain's first level (0.25) read the GGX-prefiltered chain
+* ``hybrid`` (default): lobes rougher than the chain's first level (0.18 for 256-px faces) read the GGX chain
   (:mod:`probeless.ibl.prefilter`, trilinear between levels) of the map minus its brightest texels, times the DFG
   term (:mod:`probeless.ibl.dfg`), plus those texels as lights with the exact BRDF; smoother lobes and mirrors are
   importance-sampled (visible normals, filtered lookups) with the samples spread over the pixel (antialiased);

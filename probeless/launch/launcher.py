@@ -117,6 +117,8 @@ class Launcher:
         ctl.bind(self.plan["control"])
         old = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
         try:
+            self.log(f"run id {self.run_dir.name} (`probeless runs` lists it; the tools take --graph "
+                     f"{self.run_dir.name})")
             for child in self.children.values():
                 self._spawn(child)
             self._supervise(ctl)

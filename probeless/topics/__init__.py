@@ -1,4 +1,5 @@
-"""``probeless topic list | echo | hz | info``: look at the topics of a running graph.
+"""``probeless topic list | echo | hz | info | pub``: the topics of a running graph (``node``, ``param``
+and ``runs`` are in :mod:`probeless.topics.nodes`, ``pub`` in :mod:`probeless.topics.pub`).
 
 A running graph is found through its run directory (``$PROBELESS_RUN_DIR`` or
 ``$TMPDIR/probeless-<uid>``, one sub-directory per launch) holding the launcher's ``graph.json``
@@ -14,7 +15,7 @@ is opened with linger 0.
 
 Python API (``out``/``err`` are text streams; every function raises ProbelessError on a user error)::
 
-    g = select_graph()                            # or select_graph("/tmp/probeless-1000/1203-ab")
+    g = select_graph()                            # the only running graph, or select_graph(RUN_ID | GRAPH_FILE)
     graph_topics(g)                               # {topic: Topic}
     list_topics(g, verbose=False, out=sys.stdout)
     echo(g, "src/image", count=3, arrays=True)    # -> number of messages printed

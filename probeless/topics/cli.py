@@ -1,4 +1,5 @@
-"""The ``probeless topic {list,echo,hz,info}`` command line."""
+"""The ``probeless topic {list,echo,hz,info,pub}``, ``node {list,info}``, ``param {get,set}`` and ``runs`` command
+lines."""
 
 from __future__ import annotations
 

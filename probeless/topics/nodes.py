@@ -39,13 +39,16 @@ def _ask(graph: RunningGraph, node_id: str, req: dict, timeout_s: float = 3.0) -
 
 def node_infos(graph: RunningGraph, timeout_s: float = 1.5) -> dict[str, dict | None]:
     """``info`` of every node (None for a node that did not answer: starting, ended or hung)."""
-    out: dict[str, dict | None] = {}
-    for node_id in graph.plan["nodes"]:
+    from concurrent.futures import ThreadPoolExecutor
+
+    def one(node_id: str) -> dict | None:
         try:
-            out[node_id] = _ask(graph, node_id, {"op": "info"}, timeout_s)
+            return _ask(graph, node_id, {"op": "info"}, timeout_s)
         except ProbelessError:
-            out[node_id] = None
-    return out
+            return None
+    ids = list(graph.plan["nodes"])
+    with ThreadPoolExecutor(max_workers=min(16, max(1, len(ids)))) as pool:  # a hung node costs one timeout
+        return dict(zip(ids, pool.map(one, ids)))
 
 
 def _rate(hz: float | None) -> str:
