@@ -17,7 +17,6 @@ from typing import Any, Iterable, Iterator
 import numpy as np
 
 from probeless.bag import ros_topics as rt
-from probeless.bag.ros_reader import open_any_reader
 from probeless.bag.ros_convert import (
     RosConvertError,
     camera_info_from_ros,
@@ -29,6 +28,7 @@ from probeless.bag.ros_convert import (
     stamp_ns,
     transform_of,
 )
+from probeless.bag.ros_reader import open_any_reader
 from probeless.errors import BagError
 from probeless.geom.rotation import invert_transform
 from probeless.messages.geometry import PoseStamped
