@@ -47,10 +47,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                                          "(default 256)")
     p.add_argument("--spp", type=int, default=256, help="Mitsuba samples per pixel, split over two seeds (default 256)")
     p.add_argument("--lobe", default="hybrid", choices=("hybrid", "split_sum", "texel_sum", "sampled"),
-                   help="our GGX lobe: hybrid (what ships: the prefiltered chain of the map minus its 128 brightest "
-                        "texels x DFG + those texels as lights, exact BRDF; importance sampling below roughness 0.18), "
-                        "split_sum (the chain of the whole map x DFG), texel_sum (exact sums over a 16-32 px map, "
-                        "slow) or sampled (importance sampling only)")
+                   help="our GGX lobe: hybrid (what ships: importance sampling; above roughness 0.18 of the map "
+                        "minus its 128 brightest texels, which are added as lights with the exact BRDF), split_sum "
+                        "(GGX-prefiltered chain x DFG), texel_sum (exact sums over a 16-32 px map, slow) or sampled "
+                        "(importance sampling of the whole map)")
     add_common_options(p, figure=("--figure", "our sphere, Mitsuba's and the error, per map and material"))
 
 

@@ -276,7 +276,8 @@ def expand_cloud(points, ldr_colors, photo_hdr, *, method: str, views=None, tran
             sees = None
         hdr, valid = apply_transfer(ldr, samples, counts, 1.0, transfer)
         if pmatch and robust:
-            valid, rejected = reject_cluster_outliers(hdr, valid, saturated_clusters(pts, ldr, normals=nrm))
+            valid, rejected = reject_cluster_outliers(hdr, valid, saturated_clusters(pts, ldr, normals=nrm),
+                                                      trusted=None if sees is None else sees & over)
         if sees is not None:
             visible |= sees  # the photo is one more view when its pose is known
             extra["points_overexposed_in_photo"] = int((over & sees).sum())

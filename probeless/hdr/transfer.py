@@ -222,7 +222,7 @@ def apply_transfer(ldr_points: np.ndarray, hdr_samples: np.ndarray, counts: np.n
 
 
 def reject_cluster_outliers(hdr_points: np.ndarray, valid: np.ndarray, clusters, factor: float = 2.0,
-                            mads: float = 3.0) -> tuple[np.ndarray, int]:
+                            mads: float = 3.0, trusted: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """``(valid without the outliers, number rejected)``: robust agreement inside each clipped cluster.
 
     A connected cluster of over-exposed points (``clusters``: :class:`~.views.SaturatedCluster` list) is
@@ -230,7 +230,9 @@ def reject_cluster_outliers(hdr_points: np.ndarray, valid: np.ndarray, clusters,
     the photo with SSD 0 (a wall lit by a lamp may fetch the lamp). Per cluster, among its valid points,
     those whose log luminance is further than ``max(log factor, mads * 1.4826 * MAD)`` from the cluster's
     median are outliers: they lose their value, and the Poisson fill gives them one from their neighbours.
-    Clusters with fewer than 3 valid points are left alone.
+    Clusters with fewer than 3 valid points are left alone. ``trusted`` (N,) bool: values known to be right (the
+    photo's own pixels, through its pose): never rejected, and where a cluster has at least 3 of them its median is
+    theirs.
     """
     h = _points(hdr_points, "hdr_points")
     v = np.asarray(valid, bool).copy()
@@ -244,9 +246,13 @@ def reject_cluster_outliers(hdr_points: np.ndarray, valid: np.ndarray, clusters,
         if len(idx) < 3:
             continue
         y = np.log(np.maximum(luminance(h[idx]).astype(np.float64), 1e-12))
-        med = np.median(y)
-        mad = np.median(np.abs(y - med))
-        out = np.abs(y - med) > max(np.log(factor), mads * 1.4826 * mad)
+        ref = y
+        safe = np.zeros(len(idx), bool) if trusted is None else np.asarray(trusted, bool)[idx]
+        if safe.sum() >= 3:
+            ref = y[safe]
+        med = np.median(ref)
+        mad = np.median(np.abs(ref - med))
+        out = (np.abs(y - med) > max(np.log(factor), mads * 1.4826 * mad)) & ~safe
         v[idx[out]] = False
         rejected += int(out.sum())
     return v, rejected

@@ -9,12 +9,14 @@ load time by ray casting against the object, dotted with the object's SH each fr
 Specular (``probeless/gl/glsl/ibl_specular.glsl``; GGX, alpha = roughness², Schlick Fresnel, separable Smith masking,
 Filament's multiple-scattering compensation unless ``energy_compensation=False``). The ``lobe`` argument:
 
-* ``hybrid`` (default): lobes rougher than the chain's first level (0.18 for 256-px faces) read the GGX chain
-  (:mod:`probeless.ibl.prefilter`, trilinear between levels) of the map minus its brightest texels, times the DFG
-  term (:mod:`probeless.ibl.dfg`), plus those texels as lights with the exact BRDF; smoother lobes and mirrors are
-  importance-sampled (visible normals, filtered lookups) with the samples spread over the pixel (antialiased);
-* ``split_sum``: the chain of the whole map times DFG (the classic split sum); ``sampled``: importance sampling at
-  every roughness; ``texel_sum``: exact sums over the texels of a 16-32 px level (a slow reference).
+* ``hybrid`` (default): the lobe is importance-sampled (visible normals, filtered trilinear lookups, the samples
+  spread over the pixel: antialiased); lobes rougher than 0.18 (for 256-px faces) sample the map minus its
+  brightest texels (:func:`probeless.ibl.prefilter.extract_lights`) and add those texels as lights with the exact
+  BRDF, so a small, very bright light weighs exactly its share;
+* ``split_sum``: the GGX-prefiltered chain (:mod:`probeless.ibl.prefilter`, trilinear between levels) times the DFG
+  term (:mod:`probeless.ibl.dfg`), the classic split sum (cheap, 10-20 % RMS off a path tracer at mid roughness);
+  ``sampled``: importance sampling of the whole map; ``texel_sum``: exact sums over a 16-32 px level (a slow
+  reference).
 """
 
 from __future__ import annotations
@@ -109,7 +111,7 @@ class _Gpu:
             self.floor_vao = ctx.vertex_array(floor_prog, [(self.floor_pos, "3f", "in_position"),
                                                            (self.floor_ratio, "3f", "in_ratio")],
                                               index_buffer=self.floor_ibo)
-        self.env = self.glossy = self.chain = None
+        self.env = self.glossy = self.chain = self.residual = None
         self.sum_level = -1
         self.lights = (np.zeros((0, 3), "f4"), np.zeros((0, 3), "f4"))  # (directions, powers) of the lobe's lights
 
@@ -121,12 +123,12 @@ class _Gpu:
         self.env_size = float(lighting.faces.shape[1])
         pre = glossy_faces(lighting, self.shade.roughness)
         spec = pre is None and (self.shade.ks.any() or self.shade.f90.any())
-        chained = spec and lobe in ("hybrid", "split_sum") and \
-            self.shade.roughness >= level_roughness(chain_levels(lighting.faces.shape[1]))[1]
-        residual, self.lights = lighting.faces, (np.zeros((0, 3), "f4"), np.zeros((0, 3), "f4"))
-        if chained and lobe == "hybrid":
+        rough = spec and self.shade.roughness >= level_roughness(chain_levels(lighting.faces.shape[1]))[1]
+        self.lights = (np.zeros((0, 3), "f4"), np.zeros((0, 3), "f4"))
+        if rough and lobe == "hybrid":
             residual, *self.lights = extract_lights(lighting.faces)
-        self.chain, levels = prefilter.chain(residual) if chained else (None, 1)
+            self.residual = upload_cube(ctx, residual)
+        self.chain, levels = prefilter.chain(lighting.faces) if rough and lobe == "split_sum" else (None, 1)
         self.chain_max_level = float(levels - 1)
         self.sum_level = sum_level(self.shade.roughness, lighting.faces.shape[1]) if lobe == "texel_sum" else -1
         self.chain_max_level = float(levels - 1)
@@ -143,10 +145,10 @@ class _Gpu:
             self.floor_ratio.write(ratio.astype("f4").tobytes())
 
     def release_textures(self) -> None:
-        for tex in (self.env, self.glossy, getattr(self, "chain", None)):
+        for tex in (self.env, self.glossy, getattr(self, "chain", None), getattr(self, "residual", None)):
             if tex is not None:
                 tex.release()
-        self.env = self.glossy = self.chain = None
+        self.env = self.glossy = self.chain = self.residual = None
 
     def release(self) -> None:
         self.release_textures()
@@ -220,7 +222,8 @@ class IblRenderer:
             (g.glossy or g.env).use(1)
             g.env.use(0)
             (g.chain or g.env).use(3)
-            set_uniforms(p, env=0, glossy=1, dfg=2, chain=3, chain_max_level=g.chain_max_level,
+            (g.residual or g.env).use(4)
+            set_uniforms(p, env=0, glossy=1, dfg=2, chain=3, residual=4, chain_max_level=g.chain_max_level,
                          split_sum=g.chain is not None, sum_level=int(g.sum_level), use_levels=g.glossy is not None,
                          env_size=g.env_size,
                          camera_position=tuple(world_from_camera[:3, 3]),

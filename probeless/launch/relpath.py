@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -68,8 +69,8 @@ def explain(errors: list, rooted: dict[str, tuple[str, str]]) -> list:
         written = rooted.get(e.key)
         if written is not None and e.message.startswith(os.path.normpath(os.path.join(written[1], written[0]))):
             resolved = os.path.normpath(os.path.join(written[1], written[0]))
-            message = f"{written[0]}{e.message[len(resolved):]} (relative to the graph's folder " \
-                      f"{os.path.abspath(written[1])})"
+            rest = re.sub(r" \(relative to the working folder [^)]*\)$", "", e.message[len(resolved):])
+            message = f"{written[0]}{rest} (relative to the graph's folder {os.path.abspath(written[1])})"
             e = type(e)(message, file=e.file, line=e.line, node_id=e.node_id, key=e.key)
         out.append(e)
     return out

@@ -121,7 +121,8 @@ def cmd_render(ns: argparse.Namespace) -> int:
               "variant": ns.variant, "micro": ns.micro, "position": position.round(4).tolist(),
               "exposure": exposure, "object_pixels": int(relit.mask.sum()), "seconds": timings,
               "bsh": None if report is None else {"nodes": report.n_nodes_pruned, "clusters": report.n_clusters,
-                                                   "voxel": report.voxel, "seconds": round(report.total, 3)},
+                                                   "voxel": report.voxel, "spacing": report.spacing,
+                                                   "seconds": round(report.total, 3)},
               "render": [{k: v for k, v in vars(s).items()} for s in relit.stats]}
     if ns.json:
         print_json(result)

@@ -229,3 +229,19 @@ def test_pmatch_expands_the_small_lamps_the_photo_sees(galley):
     assert np.median(ratio) == pytest.approx(1.0, abs=0.2)
     assert res.report["points_expanded_in_photo"] >= 0.9 * res.report["points_overexposed_in_photo"]
     assert not any("expanded (< half)" in w for w in res.report["warnings"])
+
+
+def test_cluster_rejection_trusts_the_photos_own_pixels():
+    """A clipped cluster: 4 points with the photo's own (right) value 20, 6 with PatchMatch's wrong 2. Untrusted,
+    the majority wins and the right values go; trusted, the photo's values set the median and the wrong ones go."""
+    from probeless.hdr.transfer import reject_cluster_outliers
+    from probeless.hdr.views import SaturatedCluster
+
+    h = np.array([[20.0] * 3] * 4 + [[2.0] * 3] * 6, np.float32)
+    valid = np.ones(10, bool)
+    cl = [SaturatedCluster(np.arange(10), np.zeros(3), 1.0, None)]
+    v, n = reject_cluster_outliers(h, valid, cl)
+    assert n == 4 and not v[:4].any() and v[4:].all()
+    trusted = np.arange(10) < 4
+    v, n = reject_cluster_outliers(h, valid, cl, trusted=trusted)
+    assert n == 6 and v[:4].all() and not v[4:].any()

@@ -31,8 +31,15 @@ def test_small_sphere_under_an_hdr_panorama_agrees_with_mitsuba():
     """Diffuse and a rough white metal through the compositor's message path vs Mitsuba (the eval's functions, a
     64-px image): within 6 % RMS once the reference's own noise is taken out (the old shader: 7.7x for GGX 0.6)."""
     from probeless.eval.ibl import HDRI, load_maps
-    from probeless.eval.ibl_mitsuba import camera, cases, compare, reference_noise, render_mitsuba, render_ours
-    from probeless.eval.ibl_mitsuba import sphere_mask
+    from probeless.eval.ibl_mitsuba import (
+        camera,
+        cases,
+        compare,
+        reference_noise,
+        render_mitsuba,
+        render_ours,
+        sphere_mask,
+    )
     from probeless.gl.context import create_context
 
     path = HDRI / "studio_small_03_1k.hdr"

@@ -36,9 +36,11 @@ def test_jittered_grid_and_random_points_within_20_percent():
 
 
 def test_room_cloud_at_2_cm_and_the_bsh_voxel():
-    """The issue's case (a room sampled on a grid; 0.0041 was reported for 1 cm), and the voxel build_bsh reports."""
+    """The issue's case (a room sampled on a grid; 0.0041 was reported for 1 cm), and what build_bsh reports."""
     room = reference_room("red_wall")
     for jitter in (False, True):
         pts, col, nrm = sample_cloud(room, 0.02, jitter=jitter)
         assert point_spacing(pts) == pytest.approx(0.02, rel=0.2)
-    assert build_bsh(pts, col, nrm).report.voxel == pytest.approx(0.02, rel=0.2)
+    report = build_bsh(pts, col, nrm).report
+    assert report.spacing == pytest.approx(0.02, rel=0.2)
+    assert report.voxel == pytest.approx(0.5 * report.spacing)  # half: one point per leaf (bsh.VOXEL_PER_SPACING)

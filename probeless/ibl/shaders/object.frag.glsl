@@ -9,6 +9,7 @@ uniform samplerCube chain;      // GGX-prefiltered chain of env (probeless.ibl.p
 uniform float chain_max_level;  // its last level (roughness 1)
 uniform bool split_sum;         // the lobe from the chain x DFG (else importance-sampled from env)
 #define MAX_LIGHTS 128
+uniform samplerCube residual;   // env without its lights (with its mip chain), when light_count > 0
 uniform int light_count;        // lights taken out of the map (probeless.ibl.prefilter.extract_lights)
 uniform vec3 light_dir[MAX_LIGHTS];    // their unit world directions
 uniform vec3 light_power[MAX_LIGHTS];  // their radiance x solid angle
@@ -95,15 +96,13 @@ void main() {
         } else if (split_sum) {
             color += ibl_specular_split(chain, chain_max_level, env_size, dfg, N, I, dNdx, dNdy, dIdx, dIdy, roughness,
                                         ks, f90, spec_samples, energy_compensation);
-            float alpha = max(roughness * roughness, IBL_MIN_ALPHA);
-            vec3 lit = vec3(0.0);
-            for (int i = 0; i < light_count; ++i)
-                lit += light_power[i] * ibl_ggx_cos(N, -I, light_dir[i], alpha, ks, f90);
-            if (energy_compensation)
-                lit *= ibl_energy_compensation(ibl_dfg(dfg, dot(N, -I), roughness), ks);
-            color += lit;
         } else {
-            vec3 spec = ibl_specular(env, env_size, N, I, dNdx, dNdy, dIdx, dIdy, roughness, ks, f90, spec_samples);
+            vec3 spec = light_count > 0
+                ? ibl_specular(residual, env_size, N, I, dNdx, dNdy, dIdx, dIdy, roughness, ks, f90, spec_samples)
+                : ibl_specular(env, env_size, N, I, dNdx, dNdy, dIdx, dIdy, roughness, ks, f90, spec_samples);
+            float alpha = max(roughness * roughness, IBL_MIN_ALPHA);
+            for (int i = 0; i < light_count; ++i)
+                spec += light_power[i] * ibl_ggx_cos(N, -I, light_dir[i], alpha, ks, f90);
             if (energy_compensation) {
                 vec2 ab = ibl_dfg(dfg, dot(N, -I), roughness);
                 spec *= ibl_energy_compensation(ab, ks);
