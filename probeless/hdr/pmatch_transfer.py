@@ -10,10 +10,11 @@ verified samples, flat clipped interiors.
    exposure rejects every match: the "expanded 0" of issue 27);
 3. samples per point: with a pose, the over-exposed points the photo sees take the photo's pixels that show them
    (``points_expanded_pose``), and PatchMatch samples of points the photo sees are not used; otherwise (points the
-   photo does not see, or no pose) a PatchMatch sample is kept when its SSD is under ``ssd_threshold`` and its
-   source patch is not a flat clipped interior: a patch with no texture that is all clipped matches any clipped
-   patch of the photo with SSD 0 (a lamp's interior fetches a window's), so such pixels get no sample; the region's
-   rim, whose patches do carry texture, is matched, and Poisson fills the interior from it.
+   photo does not see, or no pose) a PatchMatch sample is kept when its SSD is under ``ssd_threshold``; with a pose,
+   a flat clipped interior pixel (no texture, all clipped: it matches any clipped patch of the photo with SSD 0, so
+   a lamp's interior fetches a window's) takes its nearest rim match instead (:func:`rim_field`), or no sample
+   (Poisson fills it). Without a pose the paper's field is kept as it is for those pixels too: measured on the
+   coarse-model tests, the rim rule alone lowered the irradiance gain there.
 """
 
 from __future__ import annotations
@@ -159,6 +160,9 @@ def pmatch_transfer(pts, ldr, spacing, views, photo, *, mode: str, alpha0: float
         flat = on & (geo.patch_std(y, PATCH) < geo.MIN_TEXTURE) & (y > 0.9)
         good = on & (f.ssd <= ssd_threshold)
         rim = good & ~flat
+        if sees is None:  # no pose, nothing to verify a rim's match with: the paper's field, flat interiors too
+            flat = np.zeros_like(flat)
+            rim = good
         xy, from_rim = rim_field(f, flat, rim, photo_ldr)
         h = fetch(dataclasses.replace(f, xy=xy), photo) * np.float32(alpha)
         w = inverse_ssd_weights(f.ssd)

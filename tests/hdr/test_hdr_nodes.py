@@ -31,7 +31,9 @@ def _cloud(n: int, seed: int = 0, stamp: int = 7, white: int = 10) -> PointCloud
 
 
 def _photo(encoding: str = "rgbf32") -> Image:
-    data = (np.random.default_rng(1).random((16, 32, 3)) * 4).astype(np.float16 if encoding == "rgbf16" else np.float32)
+    data = np.random.default_rng(1).random((16, 32, 3)) * 4
+    data[2:4, 5:8] = 400.0  # a lamp: the operators' peak comes from the photo's brightest pixel (issue 27)
+    data = data.astype(np.float16 if encoding == "rgbf16" else np.float32)
     return Image(Header(1, "pano"), data, encoding)
 
 
