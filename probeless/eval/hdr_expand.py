@@ -319,7 +319,7 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
     true_alpha = case.exposure / case.photo_exposure
     oracle = photo_oracle(case)
     in_photo = over & oracle[1]
-    pose = oracle[0] if getattr(ns, "photo_pose", "oracle") == "oracle" else None
+    pose = oracle[0] if getattr(ns, "photo_pose", "oracle") == "oracle" else "estimate"
     ctx = create_context()
     probes = None
     try:
@@ -360,7 +360,7 @@ def evaluate_scene(scene_path: str, methods, ns, tick, images: dict | None = Non
         ctx.release()
     return {"scene": case.scene, "points": int(len(case.points)), "points_overexposed": int(over.sum()),
             "points_overexposed_in_photo": int(in_photo.sum()), "true_alpha": true_alpha,
-            "photo_pose": "oracle" if pose is not None else "estimated",
+            "photo_pose": "estimated" if isinstance(pose, str) else "oracle",
             "goals": scene_goals(rows),
             "true_radiance_max": float(case.true_radiance.max()), "exposure": case.exposure,
             "photo_exposure": case.photo_exposure, "object_position": case.object_position.tolist(),

@@ -182,7 +182,11 @@ def cmd_expand(ns: argparse.Namespace) -> int:
         rows = read_view_positions(ns.view_positions)
         rows[:, 1] = np.where(np.isnan(rows[:, 1]), points.astype(np.float64).mean(axis=0), rows[:, 1])
         views = rows
-    pose = read_photo_pose(ns.photo_pose, photo.shape) if ns.photo_pose else None
+    pose = None
+    if ns.photo_pose == "estimate":
+        pose = "estimate"
+    elif ns.photo_pose:
+        pose = read_photo_pose(ns.photo_pose, photo.shape)
     with StageBars(not ns.no_progress) as bars:
         result = expand_cloud(points, ldr, photo, method=ns.method, views=views, transfer=ns.transfer,
                               normals=normals, size=ns.size, ssd_threshold=ns.ssd_threshold,
@@ -269,8 +273,9 @@ def add_hdr_parser(sub) -> None:
                    help="the known exposure (cloud = ALPHA x photo); default: from geometry when the photo's pose "
                         "is known or found, else Eq. 1's histogram match")
     c.add_argument("--photo-pose", metavar="FILE",
-                   help="the photo's pinhole pose, JSON {K, world_from_camera} (as 'hdr photo' writes it); default: "
-                        "estimated from the PatchMatch correspondences when they allow it")
+                   help="the photo's pinhole pose, JSON {K, world_from_camera} (as 'hdr photo' writes it), or "
+                        "'estimate' (RANSAC PnP on the PatchMatch correspondences; opt-in, not validated); default: "
+                        "none, alpha from Eq. 1's histogram match")
     c.add_argument("--max-lum", type=float, metavar="L",
                    help="operators: the peak [cloud units] LDR white maps to (default: the photo's peak x alpha)")
     c.add_argument("--figures", metavar="DIR", help="write PNGs of the views and before/after panoramas")

@@ -156,7 +156,7 @@ def expansion_warnings(report: dict, diag: dict) -> list[str]:
             reasons.append(f"{diag['pixels_flat_clipped']} view pixels are flat clipped interiors (no texture to "
                            f"match; filled from their rim)")
         if report.get("photo_pose") is None and report["method"].startswith("pmatch"):
-            reasons.append("the photo's pose was not found, so the points it sees are not known")
+            reasons.append("the photo's pose is unknown (give --photo-pose), so the points it sees are not known")
         elif report.get("points_overexposed_in_photo") == 0:
             reasons.append("the photo sees none of the over-exposed points")
         out.append(f"{done} of {vis} over-exposed points that a view sees were expanded (< half): "
@@ -182,7 +182,8 @@ def expand_cloud(points, ldr_colors, photo_hdr, *, method: str, views=None, tran
     (:func:`~.transfer.reject_cluster_outliers`) are dropped before the Poisson fill (``points_rejected``);
     ``exposure``: the known alpha (cloud = alpha x photo), skipping its estimation; ``max_lum``: the operators'
     peak in cloud units (default: the photo's peak times alpha); ``photo_pose``: a known
-    :class:`~.geometry.PhotoPose` of the photo (pmatch; default: estimated from the correspondences).
+    :class:`~.geometry.PhotoPose` of the photo, or ``"estimate"`` (RANSAC PnP on the PatchMatch correspondences,
+    opt-in), or None (pmatch only).
 
     ``report``: ``method``, ``transfer``, ``alpha`` (None for methods that do not use it), ``exposure_method``
     (``geometry`` variants ``pose`` / ``correspondences``, ``histogram`` or ``given``) with its confidence,

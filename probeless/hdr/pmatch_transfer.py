@@ -116,18 +116,22 @@ def pmatch_transfer(pts, ldr, spacing, views, photo, *, mode: str, alpha0: float
                     ssd_threshold: float, photo_pose=None, fixed_alpha: bool = False) -> PmatchOutcome:
     """Steps 1-3 of the module doc. ``alpha0``: the starting exposure (``exposure_method``: ``histogram`` or
     ``given``); ``fixed_alpha``: keep it (``--exposure``), the geometry then serves the transfer only;
-    ``photo_pose``: a known :class:`~.geometry.PhotoPose` (else estimated from the correspondences)."""
+    ``photo_pose``: a known :class:`~.geometry.PhotoPose`, ``"estimate"`` (RANSAC PnP on the correspondences;
+    opt-in: not validated, see docs/hdr/generalisation.md) or None (Eq. 1's exposure, the paper's field)."""
     from probeless.hdr.patchmatch import fetch
 
     n = len(pts)
     alpha, method, rematched, pairs = alpha0, exposure_method, False, 0
     rex = pose = pview = None
+    estimate = isinstance(photo_pose, str) and photo_pose == "estimate"
+    if estimate:
+        photo_pose = None
     if photo_pose is not None:  # known pose: the exposure before any matching
         rex, pose, pview, _ = geometric_exposure(pts, ldr, spacing, views, [], photo, None, photo_pose)
         alpha, method = choose_exposure(rex, alpha0, exposure_method, fixed_alpha)
     photo_ldr = expose(photo, alpha)
     fields = match_views(views, photo_ldr, mode)
-    if photo_pose is None:
+    if photo_pose is None and estimate:
         rex, pose, pview, pairs = geometric_exposure(pts, ldr, spacing, views, fields, photo, photo_ldr)
         alpha, method = choose_exposure(rex, alpha0, exposure_method, fixed_alpha)
         if abs(np.log(alpha / alpha0)) > np.log1p(REMATCH):
