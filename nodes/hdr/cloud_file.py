@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from probeless.errors import HdrError
 from probeless.hdr.io import CLOUD_SUFFIXES, read_cloud
 from probeless.messages.header import Header
 from probeless.messages.mesh import PointCloud
@@ -30,13 +31,17 @@ class CloudFile(Node):
     @dataclass(frozen=True)
     class Params:
         path: str = param(path="file", must_exist=True, check=_cloud_type_problem,
-                          doc="coloured point cloud: .ply or .pcd (colours taken as sRGB)")
+                          doc="coloured point cloud: .ply (uchar colours sRGB, float linear 0..1) or .pcd (sRGB)")
         rate_hz: float = param(1.0, min=1e-3, max=1000.0, doc="publishing rate [Hz]")
         count: int = param(0, min=0, doc="publish this many times, then stop; 0 = until stopped")
         frame_id: str = param("world", doc="frame_id of the cloud")
 
     def setup(self) -> None:
         points, colors, normals = read_cloud(self.params.path)
+        over = int((colors > 1.0).any(axis=1).sum())
+        if over:  # a PointCloud carries LDR colours; radiance above 1 would be clipped downstream without a word
+            raise HdrError(f"{self.params.path}: {over} point(s) have linear colours above 1 (up to "
+                           f"{float(colors.max()):.4g}): an HDR cloud, not an LDR one")
         for a in (points, colors) + (() if normals is None else (normals,)):
             a.setflags(write=False)  # the same arrays go out every time
         self.points, self.colors = points, colors

@@ -17,7 +17,7 @@ from probeless.messages.sensor import CameraInfo, DepthImage, Image
 from probeless.runtime import Node, param
 from probeless.runtime.pacing import Pacer
 from probeless.scene.parse import load_scene
-from probeless.scene.rig import Rig, frame_schedule
+from probeless.scene.rig import RGBD_FRAME, Rig, frame_schedule
 
 
 class SyntheticRig(Node):
@@ -45,6 +45,8 @@ class SyntheticRig(Node):
         duration_s: float = param(0.0, min=0.0, doc="render this much scene time [s]; 0 = the whole trajectory")
         loop: bool = param(False, doc="start again at the end")
         envmaps: bool = param(True, doc="publish ground-truth cubemaps for every virtual object and fisheye frame")
+        fisheye: bool = param(True, doc="render and publish the fisheye camera (with its ground truth); false: "
+                                        "RGB-D only, for graphs that use no fisheye (it is most of the rig's cost)")
         envmap_size: int = param(64, min=4, max=2048, doc="ground-truth cubemap face size [texels]")
         fisheye_cube_size: int = param(512, min=16, max=4096,
                                        doc="cubemap resolution behind the fisheye image [texels]")
@@ -61,7 +63,7 @@ class SyntheticRig(Node):
         self.scene = load_scene(p.scene)
         self.rig = Rig(self.scene, envmap_size=p.envmap_size, fisheye_cube_size=p.fisheye_cube_size,
                        seed=p.seed, envmaps=p.envmaps)
-        self.events = frame_schedule(self.scene, p.duration_s or None)
+        self.events = [e for e in frame_schedule(self.scene, p.duration_s or None) if p.fisheye or e.kind == RGBD_FRAME]
         self.period_s = (p.duration_s or self.scene.duration) + 1.0 / self.scene.rgbd.fps
         self.lockstep = p.rate == 0
         self.passes, self.next = 0, 0

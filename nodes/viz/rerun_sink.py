@@ -160,5 +160,12 @@ class RerunSink(Node):
             # the web viewer reads from our gRPC server: a viewer still catching up keeps getting data
             self.ctx.log.info("serving the run to web viewers for %g s more (Ctrl-C ends it)",
                               self.params.linger_s)
-            time.sleep(self.params.linger_s)
+            self._linger(self.params.linger_s)
         self.stream.disconnect()
+
+    def _linger(self, seconds: float) -> None:
+        """Sleep ``seconds``, ending early when the node is asked to stop (the runtime's SIGINT/SIGTERM handler
+        only sets a flag: a plain sleep would outlast the launcher's kill timeout and the node be SIGKILLed)."""
+        end = time.monotonic() + seconds
+        while not getattr(self.ctx, "stop_requested", False) and (left := end - time.monotonic()) > 0:
+            time.sleep(min(0.1, left))

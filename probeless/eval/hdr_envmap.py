@@ -66,7 +66,7 @@ UNITS = {"maps": "camera linear units: fisheye exposure x radiance (1 = LDR whit
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """``probeless eval hdr-envmap SCENE... [--method M] [--photo-target T] [--json] [--figure OUT.png]``."""
-    from probeless.hdr.expand import METHODS
+    from probeless.hdr.methods import METHODS
 
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene YAML files (launch/scenes/*.yaml)")
     p.add_argument("--method", choices=METHODS, default="pmatch-rgb", help="expansion method (default pmatch-rgb)")

@@ -68,7 +68,7 @@ UNITS = {"cloud_rms": "cloud units (exposure x linear radiance; 1 = LDR white), 
 
 
 def all_methods() -> tuple[str, ...]:
-    from probeless.hdr.expand import METHODS
+    from probeless.hdr.methods import METHODS
 
     return (BASELINE,) + tuple(METHODS)
 

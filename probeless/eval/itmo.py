@@ -14,7 +14,7 @@ _SHORT = {"rel_rmse": "rel", "rel_rmse_scaled": "rel*", "psnr": "psnr"}
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``probeless eval itmo``."""
-    from probeless.pano.itmo_maps import EXPOSURE_PERCENTILE, EXPOSURE_TARGET
+    from probeless.pano.itmo import EXPOSURE_PERCENTILE, EXPOSURE_TARGET
 
     add_common_options(p, figure=("--figure", "write the sphere grid"))
     p.add_argument("--panorama", nargs="+", metavar="FILE", help="true-HDR panoramas (default ../shared/data/hdri)")

@@ -167,6 +167,10 @@ def cmd_expand(ns: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     points, ldr, normals = read_cloud(ns.cloud)
+    over = int((ldr > 1.0).any(axis=1).sum())
+    if over:  # float PLY colours are linear radiance as stored: this cloud is already HDR
+        raise HdrError(f"{ns.cloud}: {over} point(s) have linear colours above 1 (up to {float(ldr.max()):.4g}): "
+                       f"already an HDR cloud; `hdr expand` takes an LDR cloud (8-bit, or float 0..1)")
     try:
         photo = read_panorama(str(ns.photo))
     except ProbelessError as exc:
@@ -250,13 +254,13 @@ def cmd_photo(ns: argparse.Namespace) -> int:
 
 def add_hdr_parser(sub) -> None:
     """``probeless hdr expand`` and ``probeless hdr photo``."""
-    from probeless.hdr.expand import DEFAULT_VIEWS, METHODS
+    from probeless.hdr.methods import DEFAULT_VIEWS, METHODS
 
     hdr = sub.add_parser("hdr", help="HDR expansion of LDR point clouds (paper 001, section 4)")
     hsub = hdr.add_subparsers(dest="hdr_command", required=True)
     c = hsub.add_parser("expand", help="expand an LDR coloured point cloud to HDR from one HDR photo",
                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    c.add_argument("cloud", help="LDR coloured point cloud (.ply or .pcd; colours taken as sRGB)")
+    c.add_argument("cloud", help="LDR coloured point cloud (.ply: uchar colours sRGB, float linear 0..1; .pcd: sRGB)")
     c.add_argument("--photo", required=True, help="HDR photo of the scene (.hdr or .exr), any units")
     c.add_argument("-o", "--output", required=True, metavar="OUT.ply", help="HDR cloud; the report goes to OUT.json")
     c.add_argument("--method", choices=METHODS, default="pmatch-rgb", help="expansion method (default pmatch-rgb)")

@@ -34,6 +34,7 @@ import numpy as np
 from probeless.color import REC709_Y
 from probeless.errors import HdrError
 from probeless.hdr.exposure import match_exposure
+from probeless.hdr.methods import DEFAULT_VIEWS, METHODS
 from probeless.hdr.poisson import poisson_fill
 from probeless.hdr.splat import SplatRenderer, View, check_cloud, point_spacing
 from probeless.hdr.transfer import (
@@ -52,8 +53,6 @@ from probeless.hdr.views import (
     views_from_positions,
 )
 
-METHODS = ("landis", "banterle", "landis-pc", "banterle-pc", "pmatch-lum", "pmatch-rgb")
-DEFAULT_VIEWS = 3
 FOV_DEG = 90.0
 
 Progress = Callable[[str, int, int], None]

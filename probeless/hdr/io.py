@@ -1,9 +1,10 @@
 """Reading LDR point clouds and writing/reading HDR ones (paper 001, §4).
 
-* :func:`read_cloud`: a PLY or PCD file through Open3D. Open3D hands colours as 0..1 floats as
-  stored (uint8 codes / 255); they are taken as **sRGB-encoded** (as scanners and Open3D's own
-  datasets write them) and linearised with :func:`probeless.color.srgb_to_linear`, so the rest of
-  :mod:`probeless.hdr` sees linear LDR values 0..1.
+* :func:`read_cloud`: a PLY or PCD file through Open3D, colours returned **linear**. A PLY's colours are read
+  by their declared type (:func:`ply_colour_encoding`): ``uchar`` codes are sRGB (as scanners and Open3D's own
+  datasets write them) and decoded with :func:`probeless.color.from_srgb8`; ``float``/``double`` colours are
+  linear as stored (an HDR PLY of ``probeless hdr expand``, a renderer's export: a lamp of 20 stays 20); any
+  other type or a mixture is refused naming the property. A PCD's colours (Open3D: 0..1) are taken as sRGB.
 * :func:`write_hdr_ply` / :func:`read_hdr_ply`: a binary little-endian PLY whose vertices have float32
   ``x y z`` [m], optional float32 ``nx ny nz`` and float32 ``red green blue`` holding the **linear,
   unbounded** radiance (cloud units). Written by hand with numpy: Open3D would clip colours to 0..1.
@@ -23,16 +24,18 @@ CLOUD_SUFFIXES = (".ply", ".pcd")
 
 
 def read_cloud(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """(points (N, 3) float32 [m], colours (N, 3) float32 linear 0..1, normals (N, 3) float32 or None).
+    """(points (N, 3) float32 [m], linear colours (N, 3) float32, normals (N, 3) float32 or None).
 
-    Raises :class:`HdrError` naming the file when it is missing, of another type, unreadable, empty
-    or without colours.
+    8-bit and PCD colours come out as linear 0..1; float PLY colours as stored (module docstring). Raises
+    :class:`HdrError` naming the file when it is missing, of another type, unreadable, empty or without colours.
     """
     p = Path(path)
     if p.suffix.lower() not in CLOUD_SUFFIXES:
         raise HdrError(f"{p}: unknown point cloud type {p.suffix!r}, expected one of {', '.join(CLOUD_SUFFIXES)}")
     if not p.is_file():
         raise HdrError(f"{p}: point cloud file not found")
+    if p.suffix.lower() == ".ply":
+        return _read_ply(p, ply_colour_encoding(p))
     import open3d as o3d
 
     from probeless.progress import stdout_to_stderr
@@ -50,6 +53,78 @@ def read_cloud(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     colors = srgb_to_linear(np.clip(colors, 0.0, 1.0)).astype(np.float32)
     normals = np.asarray(pcd.normals, dtype=np.float32) if pcd.has_normals() else None
     return np.ascontiguousarray(points), np.ascontiguousarray(colors), normals
+
+
+PLY_LINEAR = {"float": "float", "float32": "float", "double": "double", "float64": "double"}
+PLY_SRGB = {"uchar": "uchar", "uint8": "uchar"}
+COLOUR_PROPERTIES = ("red", "green", "blue")
+
+
+def ply_colour_encoding(path) -> str:
+    """``"linear"`` (float or double red, green, blue) or ``"srgb"`` (uchar) from a PLY header; :class:`HdrError`
+    naming the file and the property when the colours are missing, of another type (ushort, int, ...: no
+    convention says what they mean) or of mixed kinds."""
+    p = Path(path)
+    props = _ply_vertex_properties(p)
+    kinds = {}
+    for name in COLOUR_PROPERTIES:
+        if name not in props:
+            have = ", ".join(f"{t} {n}" for n, t in props.items())
+            raise HdrError(f"{p}: the point cloud has no colours: vertex property '{name}' missing (has: {have})")
+        t = props[name]
+        if t not in PLY_LINEAR and t not in PLY_SRGB:
+            raise HdrError(f"{p}: colour property '{name}' is '{t}', which is ambiguous: expected float or double "
+                           f"(linear radiance) or uchar (8-bit sRGB)")
+        kinds[name] = "linear" if t in PLY_LINEAR else "srgb"
+    if len(set(kinds.values())) > 1:
+        odd = next(n for n in COLOUR_PROPERTIES if kinds[n] != kinds["red"])
+        raise HdrError(f"{p}: colour property '{odd}' is '{props[odd]}' but 'red' is '{props['red']}': mixed "
+                       f"colour types are ambiguous (all float/double: linear radiance, all uchar: sRGB)")
+    return kinds["red"]
+
+
+def _ply_vertex_properties(p: Path) -> dict:
+    """{name: type} of the scalar properties of a PLY's ``vertex`` element."""
+    with open(p, "rb") as f:
+        head = f.read(1 << 16)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        raise HdrError(f"{p}: not a PLY file (no 'ply' ... 'end_header' header)")
+    props, element = {}, None
+    for line in head[:end].decode("ascii", "replace").splitlines():
+        w = line.split()
+        if w[:1] == ["element"]:
+            element = w[1] if len(w) > 1 else None
+        elif w[:1] == ["property"] and element == "vertex" and len(w) == 3:
+            props[w[2]] = w[1]
+    return props
+
+
+def _read_ply(p: Path, encoding: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Open3D's tensor reader keeps the stored colour type (the legacy reader divides every type by 255)."""
+    import open3d as o3d
+
+    from probeless.color import from_srgb8
+    from probeless.progress import stdout_to_stderr
+
+    with stdout_to_stderr():
+        pcd = o3d.t.io.read_point_cloud(str(p))
+    if "positions" not in pcd.point or len(pcd.point.positions) == 0:
+        raise HdrError(f"{p}: no points (empty or unreadable point cloud)")
+    if "colors" not in pcd.point:
+        raise HdrError(f"{p}: the point cloud's colours could not be read")
+    points = pcd.point.positions.numpy().astype(np.float32)
+    raw = pcd.point.colors.numpy()
+    colors = from_srgb8(raw.astype(np.uint8)) if encoding == "srgb" else raw.astype(np.float32)
+    normals = pcd.point.normals.numpy().astype(np.float32) if "normals" in pcd.point else None
+    for name, a in (("points", points), ("colours", colors), ("normals", normals)):
+        if a is not None and not np.isfinite(a).all():
+            raise HdrError(f"{p}: {name} have NaN or infinite values")
+    if encoding == "linear" and (colors < 0).any():
+        raise HdrError(f"{p}: negative colour values ({int((colors < 0).any(axis=1).sum())} point(s)); linear "
+                       f"radiance must be >= 0")
+    return (np.ascontiguousarray(points), np.ascontiguousarray(np.asarray(colors, np.float32)),
+            None if normals is None else np.ascontiguousarray(normals))
 
 
 def _vertex_dtype(normals: bool) -> np.dtype:

@@ -13,6 +13,7 @@ from probeless.launch.secure import curve_plan
 from probeless.launch.validate import host_endpoint, split_source
 from probeless.runtime.control import ctl_endpoint
 from probeless.runtime.node import output_type
+from probeless.runtime.runs import runs_base
 from probeless.runtime.transport import endpoint_for_policy, lossy_endpoint
 
 
@@ -25,7 +26,7 @@ def _output(decl, name: str) -> dict[str, Any]:
 
 def new_run_dir() -> Path:
     """A fresh private directory for this run's ipc sockets and graph spec (short: ipc paths are limited)."""
-    base = Path(os.environ.get("PROBELESS_RUN_DIR") or Path(tempfile.gettempdir()) / f"probeless-{os.getuid()}")
+    base = runs_base()
     base.mkdir(mode=0o700, parents=True, exist_ok=True)
     return Path(tempfile.mkdtemp(prefix=time.strftime("%H%M%S-"), dir=base))
 

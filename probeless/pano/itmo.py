@@ -22,6 +22,9 @@ from probeless.color import REC709_Y
 from probeless.errors import ProbelessError
 
 _PAPER = np.array([0.3, 0.59, 0.11], dtype=np.float32)
+# the simulated camera of the ITMO evaluation (itmo_maps.camera_exposure): this percentile of the HDR
+# luminance is exposed to this linear value (here, not there: the command line offers them)
+EXPOSURE_PERCENTILE, EXPOSURE_TARGET = 0.9, 0.5
 
 
 def _as_ldr(ldr: np.ndarray, what: str) -> np.ndarray:

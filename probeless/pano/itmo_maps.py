@@ -29,13 +29,12 @@ from probeless.errors import DatasetError
 from probeless.pano import glossy
 from probeless.pano.diffuse import diffuse_map
 from probeless.pano.equirect import check_equirect, solid_angles
-from probeless.pano.itmo import apply_itmo, gamma_decode, paper_itmo
+from probeless.pano.itmo import EXPOSURE_PERCENTILE, EXPOSURE_TARGET, apply_itmo, gamma_decode, paper_itmo
 from probeless.pano.sources import read_panorama
 from probeless.pano.spheres import OBJECTS, shade, sphere_view
 from probeless.scene.rig import expose
 
 MAPS = ("ldr", "paper", "paper_linear", "landis", "akyuz", "banterle", "hdr")
-EXPOSURE_PERCENTILE, EXPOSURE_TARGET = 0.9, 0.5
 VIEWS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, -1.0, 0.0))
 DIFFUSE_SIZE = (32, 16)
 ROUGHNESS = 0.1

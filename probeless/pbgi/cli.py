@@ -136,7 +136,7 @@ def cmd_render(ns: argparse.Namespace) -> int:
 def add_pbgi_parser(sub) -> None:
     """``probeless pbgi render``."""
     from probeless.pbgi.materials import material_help
-    from probeless.pbgi.relight import MODES
+    from probeless.pbgi.modes import MODES
 
     pbgi = sub.add_parser("pbgi", help="point-based global illumination of virtual objects (paper 001, section 5)")
     psub = pbgi.add_subparsers(dest="pbgi_command", required=True)

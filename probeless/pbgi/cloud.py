@@ -13,8 +13,6 @@ darken the object). Pass the scanner's position, or an object's, when the centro
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from probeless.errors import HdrError, PbgiError
@@ -71,91 +69,16 @@ def cloud_arrays(msg: PointCloud | HdrPointCloud, orient_towards=None, *, estima
     return points, colors, normals
 
 
-PLY_LINEAR = {"float": "float", "float32": "float", "double": "double", "float64": "double"}
-PLY_SRGB = {"uchar": "uchar", "uint8": "uchar"}
-COLOUR_PROPERTIES = ("red", "green", "blue")
-
-
 def read_cloud_file(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """(points (N, 3) float32 [m], linear radiance (N, 3) float32, normals or None) of a .ply/.pcd file.
 
-    A PLY's colours are read by their declared type (:func:`ply_colour_encoding`): ``float``/``double`` are linear
-    radiance as stored (an HDR PLY of ``probeless hdr expand``, a renderer's export), ``uchar`` are sRGB codes
-    (decoded with :func:`probeless.color.from_srgb8`); any other type, or a mixture, is refused naming the
-    property. A PCD's colours are taken as sRGB (:func:`probeless.hdr.io.read_cloud`). :class:`PbgiError` names
-    the file."""
+    A PLY's colours are read by their declared type (:func:`probeless.hdr.io.ply_colour_encoding`):
+    ``float``/``double`` are linear radiance as stored (an HDR PLY of ``probeless hdr expand``, a renderer's
+    export), ``uchar`` are sRGB codes; any other type, or a mixture, is refused naming the property. A PCD's
+    colours are taken as sRGB (:func:`probeless.hdr.io.read_cloud`). :class:`PbgiError` names the file."""
     from probeless.hdr.io import read_cloud
 
-    p = Path(path)
     try:
-        if p.suffix.lower() == ".ply" and p.is_file():
-            return _read_ply(p, ply_colour_encoding(p))
-        return read_cloud(p)
+        return read_cloud(path)
     except HdrError as exc:
         raise PbgiError(str(exc)) from None
-
-
-def ply_colour_encoding(path) -> str:
-    """``"linear"`` (float or double red, green, blue) or ``"srgb"`` (uchar) from a PLY header; :class:`PbgiError`
-    naming the file and the property when the colours are missing, of another type (ushort, int, ...: no
-    convention says what they mean) or of mixed kinds."""
-    p = Path(path)
-    props = _ply_vertex_properties(p)
-    kinds = {}
-    for name in COLOUR_PROPERTIES:
-        if name not in props:
-            have = ", ".join(f"{t} {n}" for n, t in props.items())
-            raise PbgiError(f"{p}: the point cloud has no colours: vertex property '{name}' missing (has: {have})")
-        t = props[name]
-        if t not in PLY_LINEAR and t not in PLY_SRGB:
-            raise PbgiError(f"{p}: colour property '{name}' is '{t}', which is ambiguous: expected float or double "
-                            f"(linear radiance) or uchar (8-bit sRGB)")
-        kinds[name] = "linear" if t in PLY_LINEAR else "srgb"
-    if len(set(kinds.values())) > 1:
-        odd = next(n for n in COLOUR_PROPERTIES if kinds[n] != kinds["red"])
-        raise PbgiError(f"{p}: colour property '{odd}' is '{props[odd]}' but 'red' is '{props['red']}': mixed "
-                        f"colour types are ambiguous (all float/double: linear radiance, all uchar: sRGB)")
-    return kinds["red"]
-
-
-def _ply_vertex_properties(p: Path) -> dict:
-    """{name: type} of the scalar properties of a PLY's ``vertex`` element."""
-    with open(p, "rb") as f:
-        head = f.read(1 << 16)
-    end = head.find(b"end_header")
-    if not head.startswith(b"ply") or end < 0:
-        raise PbgiError(f"{p}: not a PLY file (no 'ply' ... 'end_header' header)")
-    props, element = {}, None
-    for line in head[:end].decode("ascii", "replace").splitlines():
-        w = line.split()
-        if w[:1] == ["element"]:
-            element = w[1] if len(w) > 1 else None
-        elif w[:1] == ["property"] and element == "vertex" and len(w) == 3:
-            props[w[2]] = w[1]
-    return props
-
-
-def _read_ply(p: Path, encoding: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Open3D's tensor reader keeps the stored colour type (the legacy reader divides every type by 255)."""
-    import open3d as o3d
-
-    from probeless.color import from_srgb8
-    from probeless.progress import stdout_to_stderr
-
-    with stdout_to_stderr():
-        pcd = o3d.t.io.read_point_cloud(str(p))
-    if "positions" not in pcd.point or len(pcd.point.positions) == 0:
-        raise PbgiError(f"{p}: no points (empty or unreadable point cloud)")
-    if "colors" not in pcd.point:
-        raise PbgiError(f"{p}: the point cloud's colours could not be read")
-    points = pcd.point.positions.numpy().astype(np.float32)
-    raw = pcd.point.colors.numpy()
-    colors = from_srgb8(raw.astype(np.uint8)) if encoding == "srgb" else raw.astype(np.float32)
-    normals = pcd.point.normals.numpy().astype(np.float32) if "normals" in pcd.point else None
-    for name, a in (("points", points), ("colours", colors), ("normals", normals)):
-        if a is not None and not np.isfinite(a).all():
-            raise PbgiError(f"{p}: {name} have NaN or infinite values")
-    if encoding == "linear" and (colors < 0).any():
-        raise PbgiError(f"{p}: negative colour values ({int((colors < 0).any(axis=1).sum())} point(s)); linear "
-                        f"radiance must be >= 0")
-    return np.ascontiguousarray(points), np.ascontiguousarray(colors), normals

@@ -25,9 +25,9 @@ from probeless.errors import PbgiError, SceneError
 from probeless.ibl.objects import object_from_dict, objects_problem
 from probeless.pbgi.bsh import MAX_CLUSTER_RADIUS, BshReport, build_bsh
 from probeless.pbgi.materials import brdf_from_material
+from probeless.pbgi.modes import MODES
 from probeless.pbgi.render import PbgiObject, PbgiRenderer
 
-MODES = ("full", "near_field", "envmap")
 FAR_FACE = 64  # far-field cubemap face [texels]: the micro-buffers are 16-32 texels wide
 
 

@@ -18,11 +18,26 @@ from typing import Any
 
 from probeless.errors import ProbelessError
 
+# a run's longest socket path is BASE/HHMMSS-xxxxxxxx/recorder.lossy; a unix socket path holds 107 bytes
+IPC_PATH_MAX = 107
+RUN_NAME_MAX = 32
+
 
 def runs_base() -> Path:
     """The directory holding one run directory per launched graph (``$PROBELESS_RUN_DIR`` or
-    ``$TMPDIR/probeless-<uid>``)."""
-    return Path(os.environ.get("PROBELESS_RUN_DIR") or Path(tempfile.gettempdir()) / f"probeless-{os.getuid()}")
+    ``$TMPDIR/probeless-<uid>``).
+
+    Raises :class:`ProbelessError` naming the variable when the folder is too long to hold ipc sockets.
+    """
+    env = os.environ.get("PROBELESS_RUN_DIR")
+    base = Path(env or Path(tempfile.gettempdir()) / f"probeless-{os.getuid()}")
+    room = IPC_PATH_MAX - RUN_NAME_MAX
+    if len(os.fsencode(str(base))) > room:
+        where = "PROBELESS_RUN_DIR" if env else "TMPDIR"
+        raise ProbelessError(f"{where}: run directory {str(base)!r} is {len(str(base))} characters; ipc socket "
+                             f"paths inside it would pass the {IPC_PATH_MAX}-byte limit of a unix socket: "
+                             f"set {where} to a folder of at most {room} characters")
+    return base
 
 
 def pid_alive(pid: Any) -> bool:

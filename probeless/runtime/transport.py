@@ -68,6 +68,7 @@ class _Socket:
         try:
             self.sock.bind(endpoint)
         except zmq.ZMQError as exc:
+            self.sock.close(0)  # an open socket would keep the context's term() waiting forever
             raise TransportError(f"{publisher_id}: cannot bind {endpoint}: {exc}") from None
         self.subscriptions: Counter[str] = Counter()
         self._wanted: dict[str, bool] = {}

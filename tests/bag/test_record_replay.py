@@ -5,9 +5,11 @@ from __future__ import annotations
 import io
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -25,9 +27,9 @@ pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
 
 @pytest.fixture(autouse=True)
-def _env(monkeypatch, tmp_path):
+def _env(monkeypatch, short_run_dir):
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")]))
-    monkeypatch.setenv("PROBELESS_RUN_DIR", str(tmp_path / "runs"))
+    monkeypatch.setenv("PROBELESS_RUN_DIR", str(short_run_dir))
 
 
 class Args:
@@ -67,13 +69,22 @@ nodes:
 """
 
 
-@pytest.fixture
-def recorded(tmp_path) -> Path:
-    """A recording of 25 frames at 50 Hz from nodes_for_tests:Ticker."""
-    g = write(tmp_path / "src.yaml", SOURCE.format(hz=50, count=25, out=tmp_path / "first.json"))
-    code, log = run(g, record=str(tmp_path / "in.mcap"))
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory) -> Path:
+    """A recording of 25 frames at 50 Hz from nodes_for_tests:Ticker; made once, read by every test (none writes it:
+    test_bad_files_give_clear_errors_and_nothing_is_overwritten checks that)."""
+    tmp = tmp_path_factory.mktemp("recorded")
+    runs = Path(tempfile.mkdtemp(prefix="plr-", dir="/tmp"))  # short: see short_run_dir in tests/conftest.py
+    try:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setenv("PYTHONPATH", os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")]))
+            mp.setenv("PROBELESS_RUN_DIR", str(runs))
+            g = write(tmp / "src.yaml", SOURCE.format(hz=50, count=25, out=tmp / "first.json"))
+            code, log = run(g, record=str(tmp / "in.mcap"))
+    finally:
+        shutil.rmtree(runs, ignore_errors=True)
     assert code == 0, log
-    return tmp_path / "in.mcap"
+    return tmp / "in.mcap"
 
 
 def test_record_is_complete_and_replay_is_bit_exact(tmp_path, recorded):
@@ -242,7 +253,7 @@ def _wait_for_flushed(path: Path, topic: str, count: int, timeout_s: float = 60.
                 pass
 
 
-def test_sigkilled_recorder_leaves_a_readable_file(tmp_path):
+def test_sigkilled_recorder_leaves_a_readable_file(tmp_path, short_run_dir):
     g = write(tmp_path / "big.yaml", """
 nodes:
   - id: cam
@@ -254,7 +265,7 @@ nodes:
     proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(g), "--record", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     _wait_for_flushed(out, "cam/image", 10)  # not a fixed sleep: under load the graph starts later
-    pids = [p for p in _pids_of("bag_recorder") if str(tmp_path / "runs") in Path(f"/proc/{p}/cmdline").read_text()]
+    pids = [p for p in _pids_of("bag_recorder") if str(short_run_dir) in Path(f"/proc/{p}/cmdline").read_text()]
     assert len(pids) == 1
     os.kill(pids[0], signal.SIGKILL)
     proc.send_signal(signal.SIGINT)
@@ -268,7 +279,7 @@ nodes:
     assert cli_main(["bag", "info", str(out)]) == 0
 
 
-def test_record_attaches_to_a_running_graph(tmp_path):
+def test_record_attaches_to_a_running_graph(tmp_path, short_run_dir):
     g = write(tmp_path / "live.yaml", """
 nodes:
   - id: src
@@ -279,7 +290,7 @@ nodes:
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         deadline = time.monotonic() + 30
-        while not list((tmp_path / "runs").glob("*/graph.json")) and time.monotonic() < deadline:
+        while not list(short_run_dir.glob("*/graph.json")) and time.monotonic() < deadline:
             time.sleep(0.1)
         time.sleep(1.0)
         out = tmp_path / "attached.mcap"

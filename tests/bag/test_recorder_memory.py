@@ -33,9 +33,9 @@ def test_input_queue_bytes_shares_the_total_and_never_starves_a_topic():
 
 
 @pytest.mark.timeout(300)
-def test_attached_recorder_on_a_slow_disk_stays_within_its_byte_bound(tmp_path, monkeypatch):
+def test_attached_recorder_on_a_slow_disk_stays_within_its_byte_bound(tmp_path, monkeypatch, short_run_dir):
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")]))
-    monkeypatch.setenv("PROBELESS_RUN_DIR", str(tmp_path / "runs"))
+    monkeypatch.setenv("PROBELESS_RUN_DIR", str(short_run_dir))
     g = tmp_path / "cam.yaml"
     g.write_text("nodes:\n  - id: cam\n    node: pattern_source\n    inputs: {tick: timer/hz/100}\n"
                  "    params: {width: 640, height: 480}\n")
@@ -65,7 +65,7 @@ def test_attached_recorder_on_a_slow_disk_stays_within_its_byte_bound(tmp_path, 
     sampler = threading.Thread(target=sample, daemon=True)
     try:
         deadline = time.monotonic() + 60
-        while not list((tmp_path / "runs").glob("*/graph.json")) and time.monotonic() < deadline:
+        while not list(short_run_dir.glob("*/graph.json")) and time.monotonic() < deadline:
             time.sleep(0.1)
         time.sleep(1.0)
         out = tmp_path / "slow.mcap"

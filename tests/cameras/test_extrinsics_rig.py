@@ -19,7 +19,7 @@ SCENE = ROOT / "launch/scenes/convex_room.yaml"
 
 def test_extrinsics_from_rendered_rig_sequence(tmp_path):
     bag, out = tmp_path / "rig.mcap", tmp_path / "extrinsics.yaml"
-    assert cli(["scene", "render", str(SCENE), "-o", str(bag), "--duration", "1.0", "--no-envmaps"]) == 0
+    assert cli(["scene", "render", str(SCENE), "-o", str(bag), "--duration", "0.5", "--no-envmaps"]) == 0
     assert cli(["calibrate", "extrinsics", "--bag", str(bag), "--pairs", "6", "-o", str(out), "--no-progress"]) == 0
     truth = load_scene(SCENE).fisheye_from_rgbd
     T = load_extrinsics(out)

@@ -26,7 +26,7 @@ SWITCH_S = 3.0  # light_switch.yaml turns its light on here
 
 @pytest.fixture(scope="module")
 def light_switch_runs():
-    kw = dict(duration=4.6, every=1, stride=3, cube_size=192, show_progress=False)
+    kw = dict(duration=4.6, every=1, stride=4, cube_size=192, show_progress=False)  # 18 frames, 6 after the switch
     return [evaluate_scene(ROOT / "launch/scenes/light_switch.yaml", use_delta=d, **kw) for d in (True, False)]
 
 
@@ -98,7 +98,7 @@ def test_preview_writes_the_pictures(tmp_path):
 
     out = tmp_path / "prev"
     assert main(["coarse", "preview", str(ROOT / "launch/scenes/partition_room.yaml"), "-o", str(out),
-                 "--duration", "1.0", "--atlas-size", "256", "--no-progress"]) == 0
+                 "--duration", "0.5", "--atlas-size", "256", "--no-progress"]) == 0
     names = {p.stem for p in out.glob("*.png")}
     assert names == {"atlas", "observed", "occlusion", "visibility", "filling", "model_overview", "model_inside",
                      "sheet"}

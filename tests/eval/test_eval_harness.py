@@ -18,7 +18,7 @@ POSITIONAL = {"slam": ["data"], "fisheye-pose": ["scene.yaml"], "envmap": ["scen
               "hdr-expand": ["scene.yaml"], "hdr-envmap": ["scene.yaml"]}
 OWN_FIGURE_FLAG = {"slam": "--plot", "fisheye-pose": "--plot", "envmap": "--plot", "coarse": "--plot",
                    "glossy": "--figure", "diffuse": "--figure", "itmo": "--figure",
-                   "hdr-expand": "--figure", "hdr-envmap": "--figure", "pbgi": "--figure"}
+                   "hdr-expand": "--figure", "hdr-envmap": "--figure", "pbgi": "--figure", "ibl": "--figure"}
 
 
 def parse(argv: list[str]) -> argparse.Namespace:
@@ -29,7 +29,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
 
 def test_registry_names_front_ends_with_add_arguments_and_run():
     assert list(EVALUATIONS) == ["slam", "fisheye-pose", "envmap", "coarse", "glossy", "diffuse", "itmo",
-                                 "hdr-expand", "hdr-envmap", "pbgi"]
+                                 "hdr-expand", "hdr-envmap", "pbgi", "ibl"]
     for name, ev in EVALUATIONS.items():
         module = load(name)
         assert callable(module.add_arguments) and callable(module.run), name

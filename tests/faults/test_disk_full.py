@@ -131,11 +131,11 @@ nodes:
 @pytest.mark.graph
 @pytest.mark.slow
 @pytest.mark.timeout(300)
-def test_recording_graph_fills_the_disk_and_the_graph_runs_on(small_disk, tmp_path):
+def test_recording_graph_fills_the_disk_and_the_graph_runs_on(small_disk, tmp_path, short_run_dir):
     g = tmp_path / "g.yaml"
     g.write_text(GRAPH.format(out=tmp_path / "sink.json"))
     out = small_disk / "run.mcap"
-    env = dict(node_env(), PROBELESS_RUN_DIR=str(tmp_path / "runs"))
+    env = dict(node_env(), PROBELESS_RUN_DIR=str(short_run_dir))
     proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(g), "--record", str(out),
                              "--compression", "none"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env=env)

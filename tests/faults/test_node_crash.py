@@ -36,7 +36,6 @@ VICTIMS = {"slam": "slam/pose", "undistort": "undistort/image", "interp": "inter
            "brightness": "brightness/delta", "texturer": "texturer/atlas", "envmap": "envmap/envmaps",
            "compositor": "compositor/image", "video": "video/diagnostics", "png": "png/diagnostics"}
 RESUME_BOUND_S = 60.0  # restart backoff (0.2 s) + process start + setup + the first output, on a loaded 2-core VM
-DIAGNOSTICS_S = 1.5   # a little more than the 1 Hz diagnostics period
 SETTLE_S = 2.0         # after the last restarted node works again, before the graph is stopped
 
 
@@ -149,6 +148,15 @@ class Watcher(threading.Thread):
             return any(i.received for i in s.inputs)
         return any(p.startswith(f"{topic}=") and int(p.split("=")[1]) > 0 for p in s.published)
 
+    def restart_reported(self, victim: str, since_ns: int) -> bool:
+        """True once a node downstream of ``victim`` (not the recorder) says, in a status stamped after
+        ``since_ns``, that an input from ``victim`` saw its seq start again (``publisher_restarts``)."""
+        nodes = self.plan["nodes"]
+        return any(s.header.stamp_ns > since_ns and any(i.topic.startswith(f"{victim}/") and i.publisher_restarts
+                                                        for i in s.inputs)
+                   for node_id, s in list(self.status.items())
+                   if node_id != victim and nodes.get(node_id, {}).get("node") != "bag_recorder")
+
 
 class Killer(threading.Thread):
     """Kills each victim once it works, waits until its restarted process works again, then the next."""
@@ -197,7 +205,10 @@ class Killer(threading.Thread):
             self.ready_after[victim] = (time.time_ns() - t_kill) / 1e9
             if not self._wait(lambda: w.working(victim, topic, t_kill), f"{victim} to resume {topic}"):
                 return
-            time.sleep(DIAGNOSTICS_S)  # downstream nodes report the restart before one of them is killed next
+            # downstream nodes report the restart before one of them is killed next (a sink has none)
+            if not topic.endswith("/diagnostics") and not self._wait(
+                    lambda: w.restart_reported(victim, t_kill), f"a node downstream of {victim} to report its restart"):
+                return
         time.sleep(SETTLE_S)
 
 

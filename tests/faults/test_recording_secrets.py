@@ -81,8 +81,8 @@ nodes:
 @pytest.mark.graph
 @pytest.mark.slow
 @pytest.mark.timeout(300)
-def test_launch_record_stores_no_secret_from_env_args_or_params(tmp_path, monkeypatch):
-    monkeypatch.setenv("PROBELESS_RUN_DIR", str(tmp_path / "runs"))
+def test_launch_record_stores_no_secret_from_env_args_or_params(tmp_path, monkeypatch, short_run_dir):
+    monkeypatch.setenv("PROBELESS_RUN_DIR", str(short_run_dir))
     monkeypatch.setenv("PROBELESS_TEST_TOKEN", GH_TOKEN)
     monkeypatch.setenv("AWS_SECRET_ACCESS_KEY", AWS_SECRET)
     g = write_graph(tmp_path, GRAPH.format(tmp=tmp_path))

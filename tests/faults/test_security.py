@@ -93,13 +93,13 @@ def _listen(endpoint: str, pair: tuple[bytes, bytes] | None, server_key: bytes |
 
 @pytest.mark.graph
 @pytest.mark.slow
-def test_subscriber_without_an_allowed_key_receives_nothing(tmp_path):
+def test_subscriber_without_an_allowed_key_receives_nothing(tmp_path, short_run_dir):
     key_dir = keys(tmp_path)
     path, cam_port = two_host_graph(tmp_path, count=0, curve=True, hz=50)   # count 0: runs until stopped
     cam_public = zmq.auth.load_certificate(key_dir / "public" / "camera_pc.key")[0]
     gpu_pair = zmq.auth.load_certificate(key_dir / "private" / "gpu_pc.key_secret")
     stranger = zmq.curve_keypair()
-    env = {**node_env(), "PROBELESS_RUN_DIR": str(tmp_path / "runs")}   # the topic tool finds this graph alone
+    env = {**node_env(), "PROBELESS_RUN_DIR": str(short_run_dir)}   # the topic tool finds this graph alone
     graph = RunningGraph(path, env=env)
     try:
         graph.wait_started()

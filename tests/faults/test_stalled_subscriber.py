@@ -10,20 +10,20 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
-from faults_common import free_ports, rate_hz
-from locations import TESTS
+from faults_common import RunningGraph, free_ports, rate_hz
 
-FPS, BEFORE_S, STOP_S, AFTER_S = 30, 3.0, 10.0, 3.0
-FRAMES = int(FPS * (BEFORE_S + STOP_S + AFTER_S + 1))
+FPS, BEFORE_S, STOP_S, AFTER_S = 30, 2.5, 10.0, 1.5
+FRAMES = int(FPS * (BEFORE_S + STOP_S + AFTER_S + 0.5))  # the source's frames, counted from the graph's start
+# with ``block`` the source waits out the stop, so its frames last that much longer: give it 6 s of frames left at
+# the stop, twice what it would need to pass ``during_hz < 0.3 * baseline`` if it did not wait
+BLOCK_FRAMES = int(FPS * (BEFORE_S + 6.0 + 0.5))
 
 
-def _graph(tmp: Path, stopped_policy: str, tcp: bool) -> Path:
+def _graph(tmp: Path, stopped_policy: str, tcp: bool, frames: int) -> Path:
     queue = ", queue_size: 4" if stopped_policy != "latest" else ""
     hosts = f"hosts:\n  cam: {{address: 127.0.0.1, port_base: {free_ports(1)}}}\n" if tcp else ""
     text = f"""{hosts}nodes:
@@ -31,7 +31,7 @@ def _graph(tmp: Path, stopped_policy: str, tcp: bool) -> Path:
     node: pattern_source
 {"    host: cam" if tcp else ""}
     inputs: {{tick: timer/hz/{FPS}}}
-    params: {{width: 640, height: 480, count: {FRAMES}}}
+    params: {{width: 640, height: 480, count: {frames}}}
   - id: running
     node: nodes_for_tests:ArrivalLog
     inputs: {{image: {{source: src/image, policy: latest}}}}
@@ -50,29 +50,21 @@ def _graph(tmp: Path, stopped_policy: str, tcp: bool) -> Path:
     return path
 
 
-def _run_stall(tmp: Path, stopped_policy: str, tcp: bool = False) -> dict:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.Popen([sys.executable, "-m", "probeless.cli", "launch", str(_graph(tmp, stopped_policy, tcp))],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-    pid_file = tmp / "stopped.pid"
+def _run_stall(tmp: Path, stopped_policy: str, tcp: bool = False, frames: int = FRAMES) -> dict:
+    g = RunningGraph(_graph(tmp, stopped_policy, tcp, frames))
     try:
-        deadline = time.monotonic() + 60
-        while not pid_file.exists() and proc.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert pid_file.exists(), proc.communicate(timeout=30)[0]
-        time.sleep(BEFORE_S + 1.0)  # the barrier, then a steady baseline
-        pid = int(pid_file.read_text())
+        g.wait_started()  # the barrier passed: the source runs from here
+        time.sleep(BEFORE_S)  # a steady baseline
+        pid = int((tmp / "stopped.pid").read_text())
         t_stop = time.time_ns()
         os.kill(pid, signal.SIGSTOP)
         time.sleep(STOP_S)
         t_cont = time.time_ns()
         os.kill(pid, signal.SIGCONT)
-        out, _ = proc.communicate(timeout=120)
+        g.proc.wait(timeout=120)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    assert proc.returncode == 0, out
+        out = g.stop()
+    assert g.proc.returncode == 0, out
     running = [t for _, t in json.loads((tmp / "running.json").read_text())["log"]["image"]]
     stopped = json.loads((tmp / "stopped.json").read_text())["log"]["image"]
     status = json.loads((tmp / "watch.json").read_text())["status"]["stopped"]["image"]
@@ -80,7 +72,7 @@ def _run_stall(tmp: Path, stopped_policy: str, tcp: bool = False) -> dict:
     during = rate_hz(running, t_stop + int(0.2e9), t_cont)
     _report(f"{stopped_policy}_{'tcp' if tcp else 'ipc'}", {
         "running_sink_hz_before": round(baseline, 2), "running_sink_hz_while_stopped": round(during, 2),
-        "ratio": round(during / baseline, 3), "frames": FRAMES, "stopped_sink_received": len(stopped),
+        "ratio": round(during / baseline, 3), "frames": frames, "stopped_sink_received": len(stopped),
         "stopped_sink_seq_gaps": status["seq_gaps"], "stopped_sink_dropped": status["dropped"]})
     return {"baseline_hz": baseline, "during_hz": during, "stopped_seqs": [s for s, _ in stopped],
             "status": status, "log": out}
@@ -112,9 +104,9 @@ def test_a_stopped_lossy_subscriber_never_slows_the_others(tmp_path, tcp):
 @pytest.mark.graph
 @pytest.mark.slow
 def test_a_stopped_block_subscriber_holds_up_its_publisher(tmp_path):
-    r = _run_stall(tmp_path, "block")
+    r = _run_stall(tmp_path, "block", frames=BLOCK_FRAMES)
     assert r["baseline_hz"] > 0.5 * FPS, r["log"]
     # the publisher waited: the running sink got at most what the pipes held before the wait began
     assert r["during_hz"] < 0.3 * r["baseline_hz"], (r["baseline_hz"], r["during_hz"])
-    assert r["stopped_seqs"] == list(range(FRAMES))     # nothing lost
+    assert r["stopped_seqs"] == list(range(BLOCK_FRAMES))     # nothing lost
     assert r["status"]["seq_gaps"] == 0 and r["status"]["dropped"] == 0

@@ -230,3 +230,25 @@ def test_foxglove_export_tone_maps_radiance():
     assert schema == "foxglove.PointCloud"
     data = np.frombuffer(base64.b64decode(body["data"]), np.uint8).reshape(3, body["point_stride"])
     assert data[:, 12].tolist() == [0, 188, 255]  # Reinhard: 0, 0.5 (sRGB code 188), ~1
+
+
+def test_read_cloud_takes_float_ply_colours_as_linear_radiance(tmp_path, capsys):
+    """A PLY with `property double red` holds linear radiance: a lamp of 20 stays 20 (the legacy Open3D path read
+    it as sRGB/255: 0.007), and `hdr expand`, which takes LDR clouds, refuses it naming the file and the count."""
+    from probeless.cli import main
+
+    rng = np.random.default_rng(1)
+    pts = rng.random((50, 3))
+    rad = rng.random((50, 3)) * 0.8
+    rad[:3] = 20.0
+    head = ("ply\nformat ascii 1.0\nelement vertex 50\nproperty float x\nproperty float y\nproperty float z\n"
+            "property double red\nproperty double green\nproperty double blue\nend_header\n")
+    body = "".join(" ".join(f"{v:.9g}" for v in (*p, *c)) + "\n" for p, c in zip(pts, rad))
+    path = tmp_path / "lamp.ply"
+    path.write_text(head + body)
+    p, c, n = read_cloud(path)
+    assert n is None and np.allclose(p, pts, atol=1e-6) and np.allclose(c, rad, rtol=1e-6)
+    assert c.max() == pytest.approx(20.0)
+    assert main(["hdr", "expand", str(path), "--photo", str(tmp_path / "photo.hdr"), "-o", str(tmp_path / "o.ply")])
+    err = capsys.readouterr().err
+    assert "lamp.ply: 3 point(s) have linear colours above 1 (up to 20)" in err and err.count("\n") == 1

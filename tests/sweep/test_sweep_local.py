@@ -56,8 +56,10 @@ def test_parquet_table_matches_the_csv(swept):
 
 def test_sweep_is_reproducible(swept, tmp_path):
     sweep, out, _ = swept
-    run_sweep(sweep, tmp_path / "again", jobs=2, show_progress=False)
-    assert values(read_csv(tmp_path / "again" / "results.csv")) == values(read_csv(out / "results.csv"))
+    # one scene's two runs again (a run per CPU; the other scene's runs are the same code path)
+    run_sweep(sweep, tmp_path / "again", jobs=2, only=["scene=red_wall"], show_progress=False)
+    again = values(read_csv(tmp_path / "again" / "results.csv"))
+    assert len(again) == 2 and again == {k: v for k, v in values(read_csv(out / "results.csv")).items() if k in again}
 
 
 def test_resume_reruns_nothing_then_only_what_is_unfinished(swept):

@@ -52,6 +52,17 @@ def _pairs(g: Launched, n: int, timeout: float = 20.0, src: str = "src/image", o
     return pairs
 
 
+def _infos_with_rates(g: Launched, timeout: float = 20.0) -> dict:
+    """``node_infos`` once the source's output reports a rate (from its second diagnostics period on, ~1 s)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        infos = node_infos(g.graph)
+        if "src" in infos and infos["src"]["outputs"][0]["rate_hz"] is not None:
+            return infos
+        assert time.monotonic() < deadline, f"no rates after {timeout} s: {infos}"
+        time.sleep(0.1)
+
+
 def _parent_pid(pid: int) -> int:
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         if line.startswith("PPid:"):
@@ -65,8 +76,7 @@ def test_node_info_and_param_set_change_a_running_node(tmp_path, capsys):
     g = launch(tmp_path, PIPELINE)
     try:
         wait_started(g)
-        time.sleep(1.5)  # two diagnostics periods: rates are known
-        infos = node_infos(g.graph)
+        infos = _infos_with_rates(g)
         assert set(infos) == {"src", "fx"}
         for node_id, info in infos.items():
             assert info["state"] == "running"

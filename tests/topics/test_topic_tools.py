@@ -282,6 +282,7 @@ def test_echo_exits_by_itself_at_end_of_stream(tmp_path):
 
 @pytest.mark.graph
 @pytest.mark.slow
+@pytest.mark.exclusive  # rates: alone under xdist (tests/conftest.py)
 def test_hz_reports_the_rate_of_a_50_hz_source(tmp_path):
     g = launch(tmp_path, ticker_graph(tmp_path, hz_=50))
     try:
@@ -303,6 +304,7 @@ def test_hz_reports_the_rate_of_a_50_hz_source(tmp_path):
 
 @pytest.mark.graph
 @pytest.mark.slow
+@pytest.mark.exclusive  # rates: alone under xdist (tests/conftest.py)
 def test_info_shows_subscribers_and_their_drop_counters(tmp_path, capsys):
     g = launch(tmp_path, ticker_graph(tmp_path, hz_=200, extra=f"""
   - id: slow
@@ -333,6 +335,7 @@ def test_info_shows_subscribers_and_their_drop_counters(tmp_path, capsys):
 
 @pytest.mark.graph
 @pytest.mark.slow
+@pytest.mark.exclusive  # rates: alone under xdist (tests/conftest.py)
 def test_paused_tool_does_not_slow_the_graph(tmp_path):
     """The tool stops reading for 1 s while a ``block`` subscriber must still get every message in time."""
     count = 900   # 3 s at 300 Hz; a 1 s stall of the reader's socket would hold the publisher after ~200
@@ -362,6 +365,7 @@ def test_paused_tool_does_not_slow_the_graph(tmp_path):
 
 @pytest.mark.graph
 @pytest.mark.slow
+@pytest.mark.exclusive  # rates: alone under xdist (tests/conftest.py)
 def test_ctrl_z_unsubscribes_so_a_stopped_echo_does_not_stall_the_graph(tmp_path):
     g = launch(tmp_path, ticker_graph(tmp_path, hz_=200))
     tool = None
