@@ -3,8 +3,8 @@ leaves no socket that would hang the node's shutdown."""
 
 from __future__ import annotations
 
-import zmq
 import pytest
+import zmq
 
 from probeless.errors import ProbelessError, TransportError
 from probeless.launch.plan import new_run_dir
