@@ -65,8 +65,22 @@ def pytest_collection_modifyitems(config, items):
     by_file: dict[str, list] = {}
     for item in items:
         by_file.setdefault(rel[item.nodeid], []).append(item)
-    order = sorted(by_file, key=lambda f: -_weight(by_file[f]))  # stable: ties keep collection order
+    known = _durations()
+    # longest first (known seconds from tests/durations.json, else the rough weight): the makespan of two workers
+    # is shortest when no long file starts last
+    order = sorted(by_file, key=lambda f: (-known.get(f, 0.0), -_weight(by_file[f])))  # stable: ties keep order
     items[:] = [i for f in order for i in by_file[f]]
+
+
+def _durations() -> dict[str, float]:
+    """{file relative to tests/: seconds} of a recent full run (``tools/test_durations.py`` writes it)."""
+    import json
+
+    path = _TESTS / "durations.json"
+    try:
+        return {str(k): float(v) for k, v in json.loads(path.read_text()).items()}
+    except (OSError, ValueError, AttributeError):
+        return {}
 
 
 @pytest.hookimpl(hookwrapper=True, tryfirst=True)

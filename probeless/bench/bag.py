@@ -7,7 +7,7 @@ Three measurements, every graph run through the real :class:`~probeless.launch.l
    recorded by the real ``bag_recorder`` (``add_recorder``: the ``launch --record`` path), for
    compression ``none`` and ``lz4``:
 
-   * *real time*: 30 Hz ticks (fisheye 15 Hz) for 20 s (~1.9 GB; ``--quick``: 3 s). Zero loss is
+   * *real time*: 30 Hz ticks (fisheye 15 Hz) for 20 s (~1.9 GB; ``--quick``: 2 s). Zero loss is
      checked in the file: per-topic counts equal the source's publish counts, per-topic sequences
      are 0..n-1 without gaps, and there is no ``probeless.incomplete`` report.
    * *max rate*: the same message mix back to back (the recorder's ``block`` inputs throttle the
@@ -31,10 +31,10 @@ Three measurements, every graph run through the real :class:`~probeless.launch.l
      without the pause a raw writer starting at once wrote into the previous file's still-warm
      pages and looked up to 4x cheaper per byte for reasons unrelated to either writer. This
      matters where files go through the page cache (no ``O_DIRECT``); on bare metal the pause
-     changes nothing.
+     changes nothing. ``--quick`` (93 MB per run: a smoke test, not figures to quote) pauses 1 s.
 
 2. **Replay timing.** ``bench_timing_source`` publishes 600 320x240 images at random 5-30 ms intervals
-   (``--quick``: 100); the recording is replayed by ``bag_player`` (``add_player``) to a raw
+   (``--quick``: 60); the recording is replayed by ``bag_player`` (``add_player``) to a raw
    ``bench_timing_sink`` at ``--rate 1`` and ``--rate 2``; error = |replayed receive interval - recorded
    log-time interval / rate| per consecutive message pair, p50/p99/max in ms; errors over 1 ms are
    counted, and how many of them touch a message that starts or ends an MCAP chunk.
@@ -64,7 +64,13 @@ from typing import Any
 
 import numpy as np
 
-from probeless.bench.bag_record import RATE_HZ, raw_payloads, run_ours_record, run_raw_record
+from probeless.bench.bag_record import (
+    COLD_MEMORY_S,
+    RATE_HZ,
+    raw_payloads,
+    run_ours_record,
+    run_raw_record,
+)
 from probeless.bench.bag_replay import (
     NONLOCKSTEP_RATE,
     WORKER_MAX_SLEEP_MS,
@@ -76,8 +82,8 @@ from probeless.bench.common import emit, finite_median, log, rounded
 
 GOALS = {"record_ratio_min": 0.7, "replay_p99_ms_max": 2.0, "lockstep_identical": True, "lossless": True}
 COMPRESSIONS = ("none", "lz4")
-FULL = {"realtime_s": 20.0, "maxrate_ticks": 600, "reps": 3, "timing_messages": 600}
-QUICK = {"realtime_s": 3.0, "maxrate_ticks": 30, "reps": 1, "timing_messages": 100}
+FULL = {"realtime_s": 20.0, "maxrate_ticks": 600, "reps": 3, "timing_messages": 600, "cold_memory_s": COLD_MEMORY_S}
+QUICK = {"realtime_s": 2.0, "maxrate_ticks": 30, "reps": 1, "timing_messages": 60, "cold_memory_s": 1.0}
 
 
 def run_bench(quick: bool = False) -> dict:
@@ -108,9 +114,9 @@ def run_bench(quick: bool = False) -> dict:
                 for side in (("ours", "raw") if rep % 2 == 0 else ("raw", "ours")):
                     tag = f"max-{c}-{rep}"
                     if side == "ours":
-                        fig = run_ours_record(tmp, c, cfg["maxrate_ticks"], True, tag)
+                        fig = run_ours_record(tmp, c, cfg["maxrate_ticks"], True, tag, cfg["cold_memory_s"])
                     else:
-                        fig = run_raw_record(tmp, c, payloads, types, tag)
+                        fig = run_raw_record(tmp, c, payloads, types, tag, cfg["cold_memory_s"])
                     runs[c][side].append(fig)
                     log(f"rep {rep + 1}/{cfg['reps']} max rate {c:>4} {side:>4}: {fig['bytes'] / 1e6:.0f} MB in "
                         f"{fig['record_s']:.2f} s = {fig['mb_per_s']:.0f} MB/s"
@@ -195,6 +201,7 @@ def run_bench(quick: bool = False) -> dict:
                             "raw": "mcap.writer.Writer in-process, same payloads, chunk size, compression, CRCs, "
                                    "same file output (AppendFile: O_DIRECT where possible)",
                             "statistic": f"median of {cfg['reps']} alternating repetition(s)",
+                            "cold_memory_s": cfg["cold_memory_s"],
                             "timing_messages": cfg["timing_messages"], "worker_max_sleep_ms": WORKER_MAX_SLEEP_MS},
                   machine={"cpus": os.cpu_count(), "python": platform.python_version(), "mcap": _version("mcap"),
                            "lz4": _version("lz4"), "pyzmq": zmq.__version__, "libzmq": zmq.zmq_version(),

@@ -80,7 +80,8 @@ def _check_recording(path: Path, published: dict[str, int]) -> dict:
             "file_bytes": path.stat().st_size, "first_ns": first_ns, "closed_ns": path.stat().st_mtime_ns}
 
 
-def run_ours_record(tmp: Path, compression: str, ticks: int, max_rate: bool, tag: str) -> dict:
+def run_ours_record(tmp: Path, compression: str, ticks: int, max_rate: bool, tag: str,
+                    cold_s: float = COLD_MEMORY_S) -> dict:
     from probeless.launch.replay import add_recorder
 
     out = tmp / f"camera-{tag}.json"
@@ -92,7 +93,7 @@ def run_ours_record(tmp: Path, compression: str, ticks: int, max_rate: bool, tag
                  params={"compression": compression, "command": "probeless bench bag"})
     os.sync()  # start from a clean page cache: no run pays for the previous run's writeback
     if max_rate:
-        time.sleep(COLD_MEMORY_S)  # the same cold memory as the raw writer's (module docstring)
+        time.sleep(cold_s)  # the same cold memory as the raw writer's (module docstring)
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     try:
         wall = launch_graph(graph, f"record ({compression}, {tag})")
@@ -152,7 +153,8 @@ class _AppendStream:
         return self.out.pos
 
 
-def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]], types: dict, tag: str) -> dict:
+def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]], types: dict, tag: str,
+                   cold_s: float = COLD_MEMORY_S) -> dict:
     """The same messages through a bare mcap Writer, as fast as possible, in this process."""
     from mcap.writer import CompressionType, Writer
 
@@ -165,7 +167,7 @@ def run_raw_record(tmp: Path, compression: str, payloads: list[tuple[str, bytes]
     path = tmp / f"raw-{tag}.mcap"
     seq: dict[str, int] = {}
     os.sync()  # start from a clean page cache, like the recorder's runs
-    time.sleep(COLD_MEMORY_S)  # and from memory as cold as the recorder's (module docstring)
+    time.sleep(cold_s)  # and from memory as cold as the recorder's (module docstring)
     try:
         ru0 = resource.getrusage(resource.RUSAGE_SELF)
         t0 = time.perf_counter()

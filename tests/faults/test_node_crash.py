@@ -112,8 +112,9 @@ nodes:
     assert not _alive(node_pid) and not _alive(child_pid)  # the node and the process it started: no orphans
     assert json.loads((tmp_path / "sink.json").read_text())["seqs"]["image"]  # the others stopped cleanly
     assert "sink did not stop" not in log and "src did not stop" not in log
-    # the 6 s run (start-up included) + 1.5 s grace + slack; never the hang of an unbounded wait
-    assert elapsed < 6.0 + 1.5 + 4.0, log
+    # the 6 s run (start-up included) + 1.5 s grace + slack for start-up under load (seen: 11.7 s at load 16);
+    # an unbounded wait would hang to the test's timeout
+    assert elapsed < 6.0 + 1.5 + 10.0, log
 
 
 # --- SIGKILL every node type of the shipped pipeline ---------------------------------------------------

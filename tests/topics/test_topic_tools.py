@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -103,6 +104,33 @@ def stop(g: Launched) -> str:
     out = g.output()
     assert g.proc.returncode == 0, out
     return out
+
+
+class Lines(threading.Thread):
+    """The lines a process writes to one of its pipes, read as they come."""
+
+    def __init__(self, pipe):
+        super().__init__(daemon=True)
+        self.pipe, self.lines = pipe, []
+        self.start()
+
+    def run(self) -> None:
+        for line in self.pipe:
+            self.lines.append(line)
+
+    def wait_for(self, pred, what: str, timeout: float = 30.0) -> None:
+        """Until a line satisfies ``pred``; fails the test after ``timeout``."""
+        deadline, seen = time.monotonic() + timeout, 0
+        while time.monotonic() < deadline:
+            new, seen = self.lines[seen:], seen + len(self.lines[seen:])
+            if any(pred(line) for line in new):
+                return
+            time.sleep(0.02)
+        pytest.fail(f"no {what} within {timeout} s:\n{self.text}")
+
+    @property
+    def text(self) -> str:
+        return "".join(self.lines)
 
 
 def tool_cli(*args: str) -> subprocess.Popen:
@@ -372,17 +400,22 @@ def test_ctrl_z_unsubscribes_so_a_stopped_echo_does_not_stall_the_graph(tmp_path
     try:
         wait_started(g)
         tool = tool_cli("echo", "src/image", "--no-arrays")
-        time.sleep(1.5)
+        out_lines, err_lines = Lines(tool.stdout), Lines(tool.stderr)
+        out_lines.wait_for(MESSAGE_HEAD.match, "message echoed")  # subscribed, its Ctrl-Z handler in place
         tool.send_signal(signal.SIGTSTP)               # Ctrl-Z: the tool unsubscribes, then stops
-        time.sleep(0.5)
+        err_lines.wait_for(lambda line: "suspended: unsubscribed" in line, "suspension")
         before = topic_info(g.graph, "src/image")["subscribers"][0]["counters"]["received"]
         time.sleep(2.0)                                # 400 messages: far more than socket buffers hold
         after = topic_info(g.graph, "src/image")["subscribers"][0]["counters"]["received"]
         assert after - before > 300, (before, after)
         tool.send_signal(signal.SIGCONT)
-        time.sleep(1.0)
+        out_lines.wait_for(lambda line: (m := MESSAGE_HEAD.match(line)) is not None and int(m.group(1)) > after,
+                           f"message after seq {after} echoed")
         tool.send_signal(signal.SIGINT)
-        out, err = tool.communicate(timeout=30)
+        tool.wait(timeout=30)
+        out_lines.join(10)
+        err_lines.join(10)
+        out, err = out_lines.text, err_lines.text
         assert tool.returncode == 0, err
         assert "suspended: unsubscribed" in err and "resumed: subscribed again" in err
         seqs = [int(s) for s in MESSAGE_HEAD.findall(out)]

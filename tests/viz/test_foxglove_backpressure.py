@@ -2,10 +2,10 @@
 
 The experiment of tests/faults/test_stalled_subscriber.py with a viewer in place of a SIGSTOPped sink: a
 30 Hz 640x480 camera feeds a sink and the foxglove_bridge (``policy: latest``). A client subscribes to
-the image channel, then stops reading for 10 s (a tiny receive buffer, the client library's queue of one
-frame): the server's per-client queue fills and drops its oldest messages. The sink keeps >= 0.95x its
-rate from before the viewer came, the bridge's memory stays bounded, and once it reads again the viewer
-gets fresh frames with a gap where the server dropped.
+the image channel, then stops reading for 6 s (10 s for the report, as docs/viewers.md quotes; a tiny
+receive buffer, the client library's queue of one frame): the server's per-client queue fills and drops
+its oldest messages. The sink keeps >= 0.95x its rate from before the viewer came, the bridge's memory
+stays bounded, and once it reads again the viewer gets fresh frames with a gap where the server dropped.
 
 With PROBELESS_FOXGLOVE_REPORT=FILE the figures are written to that JSON file.
 """
@@ -25,7 +25,10 @@ import pytest
 from faults.faults_common import rate_hz
 from test_foxglove_bridge import Graph, advertisements, connect, message_data, subscribe
 
-FPS, BEFORE_S, STALL_S, AFTER_S = 30, 3.0, 10.0, 2.0
+# the server's per-client queue (8 messages) fills in 0.3 s: a 6 s stall is 20x that and 180 frames long;
+# the report (docs/viewers.md) is measured over the 10 s stall it quotes
+FPS, AFTER_S = 30, 2.0
+BEFORE_S, STALL_S = (3.0, 10.0) if os.environ.get("PROBELESS_FOXGLOVE_REPORT") else (2.0, 6.0)
 WIDTH, HEIGHT = 640, 480
 
 
