@@ -84,7 +84,7 @@ def test_web_viewer_loads_connects_and_shows_the_lounge_pipeline(tmp_path):
     web = free_ports(1, stride=4)
     grpc = web + 2
     rrd = tmp_path / "run.rrd"
-    proc = _launch("launch/probeless.yaml", "viewer:=rerun", "seconds:=2", f"out_dir:={tmp_path}",
+    proc = _launch("launch/probeless.yaml", "viewer:=rerun", "seconds:=1", f"out_dir:={tmp_path}",
                    "atlas_size:=512", "mask_every:=0",
                    f"rerun_port:={web}", f"rerun_grpc_port:={grpc}", f"viewer_rrd:={rrd}",
                    env={"PROBELESS_RERUN_LINGER_S": "600", "PROBELESS_RERUN_MAX_HZ": "2"})
