@@ -71,7 +71,8 @@ class PbgiRendererNode(Node):
         max_cluster: float = param(MAX_CLUSTER_RADIUS, min=0.0, max=100.0,
                                    doc="BSH pruning: largest cluster radius [m] (probeless.pbgi.bsh)")
         tn: float = param(0.98, min=-1.0, max=1.0, doc="BSH pruning: normal agreement (cos) above this")
-        voxel: float = param(0.0, min=0.0, max=10.0, doc="BSH leaf voxel [m]; 0 = the point spacing")
+        voxel: float = param(0.0, min=0.0, max=10.0,
+                             doc="BSH leaf voxel [m]; 0 = 0.45 x the point spacing (bsh.VOXEL_PER_SPACING)")
         render_size: int = param(0, min=0, max=16384, doc="render at most this wide and upscale [px]; 0 = full size")
         near: float = param(0.02, min=1e-4, max=10.0, doc="near clip plane [m]")
         far: float = param(100.0, min=0.1, max=1e5, doc="far clip plane [m]")
