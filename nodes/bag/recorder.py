@@ -21,6 +21,7 @@ from probeless.bag.writer import INCOMPLETE, BagWriter
 from probeless.errors import BagError
 from probeless.provenance import recording_metadata
 from probeless.runtime import Node, param
+from probeless.runtime.params import writable_file_problem
 from probeless.runtime.receiver import RawMessage
 
 
@@ -49,7 +50,7 @@ class BagRecorder(Node):
 
     @dataclass(frozen=True)
     class Params:
-        path: str = param(doc="output .mcap file")
+        path: str = param(check=writable_file_problem, doc="output .mcap file")
         compression: str = param("lz4", choices=("lz4", "zstd", "none"), doc="chunk compression")
         max_size_mb: float = param(0.0, min=0.0, doc="split into _000, _001, ... files of this size; 0 = no split")
         max_duration_s: float = param(0.0, min=0.0, doc="split after this much recorded time; 0 = no split")

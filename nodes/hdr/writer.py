@@ -10,6 +10,7 @@ from pathlib import Path
 from probeless.hdr.io import write_hdr_ply
 from probeless.messages.mesh import HdrPointCloud
 from probeless.runtime import Node, param
+from probeless.runtime.params import writable_file_problem
 
 
 class HdrCloudWriter(Node):
@@ -19,7 +20,8 @@ class HdrCloudWriter(Node):
 
     @dataclass(frozen=True)
     class Params:
-        path: str = param(doc="output .ply file (parent folders are created; rewritten by each cloud)")
+        path: str = param(check=writable_file_problem,
+                          doc="output .ply file (parent folders are created; rewritten by each cloud)")
 
     def setup(self) -> None:
         Path(self.params.path).parent.mkdir(parents=True, exist_ok=True)

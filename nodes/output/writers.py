@@ -17,6 +17,7 @@ import numpy as np
 from probeless.errors import NodeError
 from probeless.messages.sensor import Image
 from probeless.runtime import Node, param
+from probeless.runtime.params import writable_dir_problem, writable_file_problem
 
 
 def to_bgr(msg: Image) -> np.ndarray:
@@ -40,7 +41,7 @@ class VideoWriter(Node):
 
     @dataclass(frozen=True)
     class Params:
-        path: str = param(doc="output .mp4 file (parent folders are created)")
+        path: str = param(check=writable_file_problem, doc="output .mp4 file (parent folders are created)")
         fps: float = param(15.0, min=0.1, max=1000.0, doc="frame rate written into the file [Hz]")
         codec: str = param("mp4v", length=4, doc="FourCC of the codec (4 characters)")
 
@@ -80,7 +81,7 @@ class PngWriter(Node):
 
     @dataclass(frozen=True)
     class Params:
-        out_dir: str = param(doc="output folder (created)")
+        out_dir: str = param(check=writable_dir_problem, doc="output folder (created)")
         prefix: str = param("frame_", doc="file name prefix")
         every: int = param(1, min=0, max=10**9, doc="write every n-th frame; 0 = only the last")
 

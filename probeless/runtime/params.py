@@ -350,6 +350,16 @@ def writable_dir_problem(value: str) -> str | None:
     return None
 
 
+def writable_file_problem(value: str) -> str | None:
+    """Why output file ``value`` (its folders created when missing) cannot be written, or None: the check of
+    :func:`writable_dir_problem` on its folder."""
+    if not value:
+        return None
+    folder = str(Path(value).expanduser().parent)
+    problem = writable_dir_problem(folder)
+    return None if problem is None else f"{value}: {problem[len(folder) + 2:]}"
+
+
 def _show(value: Any) -> str:
     return repr(list(value)) if isinstance(value, tuple) else repr(value)
 

@@ -129,6 +129,44 @@ def test_unwritable_output_folder_is_one_line_at_check(tmp_path, capsys):
     assert main(["launch", str(graph), f"out_dir:={blocker}/out"]) == 2  # refused before anything starts
 
 
+def test_every_writer_refuses_an_unwritable_output_at_check(tmp_path, capsys):
+    """png_writer, video_writer and bag_recorder (hdr_cloud_writer: the same check) refuse an unwritable output as
+    summary_sink does: one line per node naming file, line, node and key (before: a traceback at the first write)."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    g = tmp_path / "g.yaml"
+    g.write_text(f"""nodes:
+  - id: cam
+    node: pattern_source
+    inputs: {{tick: timer/hz/10}}
+  - id: png
+    node: png_writer
+    inputs: {{image: cam/image}}
+    params: {{out_dir: {blocker}/frames}}
+  - id: video
+    node: video_writer
+    inputs: {{image: cam/image}}
+    params: {{path: {blocker}/v.mp4}}
+  - id: rec
+    node: bag_recorder
+    inputs: {{image: cam/image}}
+    params: {{path: {blocker}/run.mcap}}
+""")
+    assert main(["check", str(g)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"error: {g}:8: node 'png': key 'out_dir': {blocker}/frames: cannot create the folder, {blocker} "
+                   f"is a file",
+                   f"error: {g}:12: node 'video': key 'path': {blocker}/v.mp4: cannot create the folder, {blocker} "
+                   f"is a file",
+                   f"error: {g}:16: node 'rec': key 'path': {blocker}/run.mcap: cannot create the folder, {blocker} "
+                   f"is a file",
+                   "3 error(s)"]
+    from probeless.runtime.params import writable_file_problem
+
+    assert writable_file_problem(str(tmp_path / "new" / "x.ply")) is None  # missing folders are created
+    assert "is a file" in writable_file_problem(f"{blocker}/x.ply")
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes anywhere")
 def test_output_folder_without_permission_is_reported(tmp_path, capsys):
     locked = tmp_path / "locked"
