@@ -8,8 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probeless.errors import HdrError
-from probeless.hdr.io import CLOUD_SUFFIXES, read_cloud
+from probeless.hdr.io import CLOUD_SUFFIXES, read_cloud, require_ldr
 from probeless.messages.header import Header
 from probeless.messages.mesh import PointCloud
 from probeless.runtime import Node, param
@@ -38,10 +37,7 @@ class CloudFile(Node):
 
     def setup(self) -> None:
         points, colors, normals = read_cloud(self.params.path)
-        over = int((colors > 1.0).any(axis=1).sum())
-        if over:  # a PointCloud carries LDR colours; radiance above 1 would be clipped downstream without a word
-            raise HdrError(f"{self.params.path}: {over} point(s) have linear colours above 1 (up to "
-                           f"{float(colors.max()):.4g}): an HDR cloud, not an LDR one")
+        require_ldr(self.params.path, colors)  # a PointCloud carries LDR colours
         for a in (points, colors) + (() if normals is None else (normals,)):
             a.setflags(write=False)  # the same arrays go out every time
         self.points, self.colors = points, colors

@@ -161,16 +161,13 @@ class StageBars:
 
 def cmd_expand(ns: argparse.Namespace) -> int:
     from probeless.hdr.expand import expand_cloud
-    from probeless.hdr.io import read_cloud, write_hdr_ply
+    from probeless.hdr.io import read_cloud, require_ldr, write_hdr_ply
     from probeless.jsonio import dumps, print_json
     from probeless.pano.sources import read_panorama
 
     t0 = time.perf_counter()
     points, ldr, normals = read_cloud(ns.cloud)
-    over = int((ldr > 1.0).any(axis=1).sum())
-    if over:  # float PLY colours are linear radiance as stored: this cloud is already HDR
-        raise HdrError(f"{ns.cloud}: {over} point(s) have linear colours above 1 (up to {float(ldr.max()):.4g}): "
-                       f"already an HDR cloud; `hdr expand` takes an LDR cloud (8-bit, or float 0..1)")
+    require_ldr(ns.cloud, ldr)
     try:
         photo = read_panorama(str(ns.photo))
     except ProbelessError as exc:

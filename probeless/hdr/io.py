@@ -55,6 +55,15 @@ def read_cloud(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     return np.ascontiguousarray(points), np.ascontiguousarray(colors), normals
 
 
+def require_ldr(path, colors: np.ndarray) -> None:
+    """:class:`HdrError` naming ``path`` and the count when linear ``colors`` go above 1: an HDR cloud where an LDR
+    one is expected (float PLY colours are radiance as stored, so :func:`read_cloud` passes them through)."""
+    over = int((colors > 1.0).any(axis=1).sum())
+    if over:
+        raise HdrError(f"{path}: {over} point(s) have linear colours above 1 (up to {float(colors.max()):.4g}): "
+                       f"an HDR cloud, where an LDR one (8-bit, or float 0..1) is expected")
+
+
 PLY_LINEAR = {"float": "float", "float32": "float", "double": "double", "float64": "double"}
 PLY_SRGB = {"uchar": "uchar", "uint8": "uchar"}
 COLOUR_PROPERTIES = ("red", "green", "blue")

@@ -326,7 +326,7 @@ def path_problem(value: str, kind: str = "file", resolve: Callable[[str], Any] |
     return f"{value}: {what}{where}"
 
 
-def writable_dir_problem(value: str) -> str | None:
+def writable_dir_problem(value: str, name: str | None = None) -> str | None:
     """Why folder ``value`` (created when missing, as output nodes do) cannot be written, or None.
 
     A param check for output folders (``param(check=writable_dir_problem)``): a part of the path that is
@@ -339,14 +339,14 @@ def writable_dir_problem(value: str) -> str | None:
     while not probe.exists() and probe.parent != probe:
         probe = probe.parent
     if not probe.is_dir():
-        return f"{value}: cannot create the folder, {probe} is a file"
+        return f"{name or value}: cannot create the folder, {probe} is a file"
     try:
         read_only = bool(os.statvfs(probe).f_flag & os.ST_RDONLY)
     except OSError:
         read_only = False
     if read_only or not os.access(probe, os.W_OK | os.X_OK):
         why = "read-only file system" if read_only else "permission denied"
-        return f"{value}: cannot write in {probe} ({why})"
+        return f"{name or value}: cannot write in {probe} ({why})"
     return None
 
 
@@ -355,9 +355,7 @@ def writable_file_problem(value: str) -> str | None:
     :func:`writable_dir_problem` on its folder."""
     if not value:
         return None
-    folder = str(Path(value).expanduser().parent)
-    problem = writable_dir_problem(folder)
-    return None if problem is None else f"{value}: {problem[len(folder) + 2:]}"
+    return writable_dir_problem(str(Path(value).expanduser().parent), name=value)
 
 
 def _show(value: Any) -> str:
