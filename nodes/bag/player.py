@@ -40,6 +40,7 @@ class BagPlayer(Node):
     """Publishes the messages of an MCAP recording on their (remapped) topics."""
 
     OUTPUTS = {"*": None, "clock": Clock}
+    CLOCK_SOURCE = True
 
     @dataclass(frozen=True)
     class Params:
@@ -52,6 +53,11 @@ class BagPlayer(Node):
         topics: tuple[str, ...] = param((), doc="recorded topics to play; empty = all")
         remap: tuple[str, ...] = param((), check=_remap_problem, doc="topic renames, from:=to")
         max_lag_s: float = param(0.05, min=0.0, doc="lag beyond which the schedule shifts [s]")
+
+    @staticmethod
+    def plays_lockstep(params: dict) -> bool:
+        """Whether these (launch-file) params play in lockstep: ``lockstep: true`` or ``rate: 0``."""
+        return bool(params.get("lockstep", False)) or params.get("rate", 1.0) == 0
 
     def setup(self) -> None:
         p = self.params

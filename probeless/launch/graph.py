@@ -14,6 +14,7 @@
           tick: timer/hz/$(arg fps)             # built-in timer: timer/hz/N, timer/ms/N, timer/s/N
           # all: {source: "*", exclude: [rig/gt/*]} # a pattern: one input per matching topic (launch/globs.py)
         outputs: [image]
+        latched: [image]                        # also latched (floorplan, fisheye_from_rgbd, camera_info are)
         params: {operation: blur}
         restart: on-failure                     # never (default) | on-failure
         max_restarts: 3
@@ -40,11 +41,12 @@ from probeless.errors import GraphError
 from probeless.launch.args import Substituter, resolve_args
 from probeless.launch.relpath import rooted, untag
 from probeless.launch.yamlload import LineDict, LineList, load_yaml
+from probeless.runtime.latching import parse_latched
 from probeless.runtime.queues import POLICIES
 
 TOP_KEYS = {"description", "args", "hosts", "include", "nodes", "security"}
 NODE_KEYS = {"id", "node", "inputs", "outputs", "params", "restart", "max_restarts", "restart_backoff_s",
-             "host", "description"}
+             "host", "description", "latched"}
 INPUT_KEYS = {"source", "queue_size", "policy", "feedback", "max_bytes", "exclude", "external"}
 EXTERNAL_PREFIX = "external:"   # source of an input read from another running graph (never a node id)
 INCLUDE_KEYS = {"file", "namespace", "args"}
@@ -90,6 +92,7 @@ class NodeDecl:
     host: str | None = None
     topics: dict[str, str] = field(default_factory=dict)  # output -> topic, when not "<id>/<output>"
     output_types: dict[str, str] = field(default_factory=dict)  # output -> type name, for "*" outputs (player)
+    latched: dict[str, bool] = field(default_factory=dict)  # output name or glob -> latched (runtime/latching.py)
 
 
 @dataclass
@@ -260,6 +263,10 @@ def _parse_node(raw: Any, line: int, ns: str, file: str, subst: Substituter, err
             decl.outputs = list(outputs)
         else:
             err("'outputs' must be a list of output names", raw.line_of("outputs"), node_id, "outputs")
+    if "latched" in raw:
+        decl.latched, problem = parse_latched(raw["latched"])
+        if problem:
+            err(problem, raw.line_of("latched"), node_id, "latched")
     params = raw.get("params") or LineDict()
     if isinstance(params, dict):
         decl.params, decl.param_bases = untag(dict(params))

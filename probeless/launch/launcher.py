@@ -28,7 +28,7 @@ import zmq
 from probeless.errors import GraphErrors, ProbelessError
 from probeless.launch.graph import parse_graph
 from probeless.launch.lockstep import QuiescenceCheck
-from probeless.launch.plan import build_plan, new_run_dir
+from probeless.launch.plan import build_plan, clock_source, new_run_dir
 from probeless.launch.validate import validate
 
 _PR_SET_PDEATHSIG = 1
@@ -96,7 +96,7 @@ class Launcher:
         self.out = out
         self.print_lock = threading.Lock()
         self.run_dir = new_run_dir()
-        self.plan = build_plan(graph, self.run_dir, clock_node=clock_node)
+        self.plan = build_plan(graph, self.run_dir, clock_node=clock_node or clock_source(graph))
         (self.run_dir / "graph.json").write_text(json.dumps(self.plan, indent=1))
         selected = [n for n in self.plan["nodes"].values() if only is None or n["host"] == only]
         if only is not None and not selected:
@@ -162,6 +162,7 @@ class Launcher:
         t0 = time.monotonic()
         started = False
         self.quiescence: QuiescenceCheck | None = None
+        self.collect_at: float | None = None  # when to collect again (lockstep: nodes were still working)
         while not self.stopping:
             if ctl.poll(1 if self.quiescence is not None else 50):
                 parts = ctl.recv_multipart()
@@ -182,7 +183,9 @@ class Launcher:
                 self.log(f"not ready after {self.ready_timeout:.0f} s: {', '.join(waiting)}")
                 self.failed += waiting
                 return
-            if self.quiescence is not None and any(
+            if self.quiescence is not None and self.collect_at is not None and time.monotonic() >= self.collect_at:
+                self._collect(ctl)
+            elif self.quiescence is not None and any(
                     self.children[n].proc.poll() is not None for n in self.quiescence.expected):
                 self._collect(ctl)  # a node ended mid-collect: collect again without it
             if self._reap() or (self.duration is not None and started
@@ -200,10 +203,13 @@ class Launcher:
                 if check.quiet():
                     self.quiescence = None
                     ctl.send_multipart([check.requester.encode(), b"quiet"])
+                elif (delay := check.retry_delay_s()) > 0:
+                    self.collect_at = time.monotonic() + delay
                 else:
                     self._collect(ctl)
 
     def _collect(self, ctl: zmq.Socket) -> None:
+        self.collect_at = None
         alive = [c.node_id for c in self.children.values() if c.proc is not None and c.proc.poll() is None]
         asked = self.quiescence.begin_round(alive)
         if not asked:

@@ -12,6 +12,7 @@ from probeless.launch.graph import Graph
 from probeless.launch.secure import curve_plan
 from probeless.launch.validate import host_endpoint, split_source
 from probeless.runtime.control import ctl_endpoint
+from probeless.runtime.latching import is_latched
 from probeless.runtime.node import output_type
 from probeless.runtime.runs import runs_base
 from probeless.runtime.transport import endpoint_for_policy, lossy_endpoint
@@ -22,6 +23,14 @@ def _output(decl, name: str) -> dict[str, Any]:
     if name in decl.output_types:
         out["type_name"] = decl.output_types[name]
     return out
+
+
+def clock_source(graph: Graph) -> str | None:
+    """The node every other one follows in time: the graph's only player of a recording (``CLOCK_SOURCE``), so a
+    graph whose source is a recording runs its timers in recorded time, as ``--replay`` does; None with none or
+    several (host time)."""
+    ids = [i for i, cls in graph.node_classes.items() if getattr(cls, "CLOCK_SOURCE", False)]
+    return ids[0] if len(ids) == 1 else None
 
 
 def new_run_dir() -> Path:
@@ -71,6 +80,7 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
                           "lossy_endpoint": lossy_endpoint(endpoints[decl.id]),
                           "host": decl.host, "inputs": inputs, "restart": decl.restart,
                           "max_restarts": decl.max_restarts, "restart_backoff_s": decl.restart_backoff_s,
+                          "latched": dict(decl.latched),
                           "outputs": {o: _output(decl, o) for o in names}}
     for node in nodes.values():
         for inp in node["inputs"]:
@@ -86,8 +96,9 @@ def build_plan(graph: Graph, run_dir: Path, clock_node: str | None = None) -> di
         nodes[clock_node]["outputs"]["clock"] = {"topic": clock_topic, "subscribers": len(followers),
                                                  "subscriber_ids": [[n["id"], "__clock__"] for n in followers]}
     for node in nodes.values():
-        for out in node["outputs"].values():
+        for name, out in node["outputs"].items():
             out.setdefault("subscribers", 0)
+            out["latched"] = is_latched(name, node["latched"])  # runtime/latching.py
     return {"file": graph.file, "file_abs": str(Path(graph.file).resolve()), "run_id": Path(run_dir).name,
             "args": graph.args, "run_dir": str(run_dir), "launcher_pid": os.getpid(),
             "started_ns": time.time_ns(),

@@ -14,6 +14,7 @@ from pathlib import Path
 from probeless.errors import BagError, GraphError
 from probeless.launch.graph import Graph, InputDecl, NodeDecl
 from probeless.launch.validate import split_source
+from probeless.runtime.latching import default_latched, is_latched
 from probeless.runtime.node import input_type
 from probeless.runtime.queues import input_queue_bytes
 from probeless.runtime.registry import resolve_node
@@ -133,14 +134,17 @@ def add_player(graph: Graph, bag: str, recorded: dict[str, str], *, replace: lis
             _check_type(graph, decl, inp, topic, played[topic][1], bag)
             needed[topic] = played[topic][0]
             inp.source = f"{PLAYER_ID}/{topic}"
+    latched: dict[str, bool] = {}  # a replaced node's ``latched:`` choices, carried to the player's topics
     for node_id in replace:
-        for topic in outputs[node_id].values():
+        for out, topic in outputs[node_id].items():
             needed.setdefault(topic, played[topic][0])
+            if is_latched(out, graph.nodes[node_id].latched) != default_latched(topic):
+                latched[topic] = is_latched(out, graph.nodes[node_id].latched)
         del graph.nodes[node_id]
         graph.node_classes.pop(node_id, None)
     player_params = {"path": bag, "topics": sorted(set(needed.values())),
                      "remap": [f"{a}:={b}" for a, b in sorted(remap.items())], **(params or {})}
-    add_player_node(graph, player_params, {t: played[t][1] for t in needed})
+    add_player_node(graph, player_params, {t: played[t][1] for t in needed}, latched)
     return list(replace)
 
 
@@ -214,11 +218,13 @@ def _plan_lines(graph: Graph, replace: list[str], keep: list[str], swapped: dict
             f"live: {', '.join(live) or 'none'}"]
 
 
-def add_player_node(graph: Graph, params: dict, topic_types: dict[str, str]) -> None:
-    """Add the ``bag_player`` node publishing ``topic_types`` (played topic -> type name) under those names."""
+def add_player_node(graph: Graph, params: dict, topic_types: dict[str, str],
+                    latched: dict[str, bool] | None = None) -> None:
+    """Add the ``bag_player`` node publishing ``topic_types`` (played topic -> type name) under those names;
+    ``latched`` (topic -> bool) overrides which are latched (by default by name: runtime/latching.py)."""
     graph.nodes[PLAYER_ID] = NodeDecl(PLAYER_ID, "bag_player", graph.file, 0, outputs=sorted(topic_types),
                                       params=params, topics={t: t for t in topic_types},
-                                      output_types=dict(topic_types))
+                                      output_types=dict(topic_types), latched=dict(latched or {}))
     graph.node_classes[PLAYER_ID] = resolve_node("bag_player")
 
 

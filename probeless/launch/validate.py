@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import difflib
+import fnmatch
 from pathlib import Path
 from typing import Any
 
@@ -35,9 +36,11 @@ def validate(graph: Graph) -> list[GraphError]:
         errors += explain(check_params(cls.Params, decl.params, node_id=decl.id, file=decl.file,
                                        lines=decl.param_lines, line=decl.lines.get("params", decl.line)), rooted)
         errors += _check_outputs(decl, cls)
+        errors += _check_latched(decl, cls)
         errors += _check_inputs(graph, decl, cls, classes)
         errors += _check_host(graph, decl)
     errors += _check_cycles(graph)
+    errors += _check_lockstep(graph, classes)
     errors += _check_security(graph)
     graph.node_classes = classes
     return _merge_arg_errors(graph, errors)
@@ -109,6 +112,23 @@ def _check_outputs(decl: NodeDecl, cls: type) -> list[GraphError]:
         if not output_type(cls, out)[0]:
             errors.append(_err(decl, f"{decl.node} has no output {out!r} (declared: "
                                      f"{', '.join(cls.OUTPUTS) or 'none'})", "outputs"))
+    return errors
+
+
+def _check_latched(decl: NodeDecl, cls: type) -> list[GraphError]:
+    """Every name of a node's ``latched:`` key is one of its outputs; every glob matches one."""
+    errors = []
+    outs = [o for o in _outputs_of(decl, cls) if o != "diagnostics"]
+    for name in decl.latched:
+        if any(c in name for c in "*?["):
+            if not any(fnmatch.fnmatchcase(o, name) for o in outs):
+                errors.append(_err(decl, f"latched: {name!r} matches no output of {decl.node} (outputs: "
+                                         f"{', '.join(outs) or 'none'})", "latched"))
+        elif name == "diagnostics" or not output_type(cls, name)[0] or (decl.outputs is not None
+                                                                       and name not in decl.outputs):
+            errors.append(_err(decl, f"latched: {decl.node} has no output {name!r} "
+                                     f"({_did_you_mean(name, outs)}outputs: {', '.join(outs) or 'none'})",
+                               "latched"))
     return errors
 
 
@@ -206,6 +226,16 @@ def host_endpoint(graph: Graph, decl: NodeDecl) -> str | None:
 def _bracket(address: str) -> str:
     """An IPv6 address in the brackets a ZeroMQ endpoint needs (``::`` -> ``[::]``); others unchanged."""
     return f"[{address}]" if ":" in address and not address.startswith("[") else address
+
+
+def _check_lockstep(graph: Graph, classes: dict) -> list[GraphError]:
+    """One lockstep player at most: each waits until every other node is idle, so two would wait for each
+    other forever."""
+    players = [d for d in graph.nodes.values()
+               if getattr(classes.get(d.id), "plays_lockstep", lambda params: False)(d.params)]
+    return [_err(d, f"a second lockstep player: {players[0].id!r} and {d.id!r} both play in lockstep (rate: 0 or "
+                    f"lockstep: true) and would wait for each other forever; give one a rate > 0", "params")
+            for d in players[1:]]
 
 
 def _check_cycles(graph: Graph) -> list[GraphError]:

@@ -97,9 +97,12 @@ def runtime_info(rt: Any) -> dict[str, Any]:
             inputs.append({"name": i["name"], "topic": f"timer ({1e9 / i['timer_period_ns']:g} Hz)",
                            "policy": "timer", "queue_size": 0, "queued": 0, "received": None, "dropped": 0,
                            "seq_gaps": 0, "invalid": 0, "rate_hz": None})
-    published = dict(rt.publisher.published) if hasattr(rt, "publisher") else {}
+    pub = getattr(rt, "publisher", None)
+    published = dict(pub.published) if pub is not None else {}
+    latched, resent = (set(pub.latched), dict(pub.resent)) if pub is not None else (set(), {})
     outputs = [{"name": name, "topic": topic, "published": published.get(topic, 0),
-                "rate_hz": rt.rates.get(("out", topic))} for name, topic in rt.topics.items()]
+                "rate_hz": rt.rates.get(("out", topic)), "latched": topic in latched,
+                "resent_to_late_joiners": resent.get(topic, 0)} for name, topic in rt.topics.items()]
     params = rt.params
     return {"ok": True, "node_id": rt.node_id, "node": rt.spec["node"], "pid": os.getpid(), "state": rt.state,
             "uptime_s": rt.uptime_s(), "rss_bytes": rt.memory_last, "inputs": inputs, "outputs": outputs,

@@ -34,6 +34,7 @@ from probeless.messages.diagnostics import InputCounters, NodeStatus
 from probeless.messages.header import Header, Tick
 from probeless.runtime import control as tool_control
 from probeless.runtime.clock import NodeClock
+from probeless.runtime.latching import is_latched
 from probeless.runtime.memwatch import MemoryWatch, rss_bytes
 from probeless.runtime.node import Node, output_type
 from probeless.runtime.params import load_params
@@ -46,6 +47,7 @@ from probeless.runtime.timers import TimerSet
 from probeless.runtime.transport import Publisher
 
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
+LATCH_POLL_S = 0.02   # how often a node holding latched messages looks for late joiners [s]
 CLOCK_INPUT = "__clock__"
 
 
@@ -81,6 +83,8 @@ class NodeRuntime:
         self.lifetime_inputs = {i["name"] for i in spec["inputs"] if not i.get("feedback")} & self.open_inputs
         self.callback_names = {name: f"on_input:{name}" for name in self.queues}
         self.topics = {name: out["topic"] for name, out in spec["outputs"].items()}
+        self.latched = {out["topic"] for out in spec["outputs"].values() if out.get("latched")}
+        self.next_latch_poll = 0.0
         self.node: Node | None = None
         self.memory, self.memory_warned = MemoryWatch(), False
         # the tools' channel (control.py): node info, run-time params
@@ -115,6 +119,8 @@ class NodeRuntime:
             if not output_type(self.node_cls, output)[0]:
                 raise ValueError(f"node {self.node_id!r} has no output {output!r}")
             topic = self.topics[output] = f"{self.node_id}/{output}"
+            if is_latched(output, self.spec.get("latched")):  # an output the plan does not list (a family's)
+                self.publisher.latched.add(topic)
         return topic
 
     def create_timer(self, period_s: float, callback: Callable[[], None], name: str | None = None):
@@ -152,7 +158,7 @@ class NodeRuntime:
             params = self.params = load_params(self.node_cls.Params, self.spec.get("params"), node_id=self.node_id,
                                                file=self.spec.get("file"), line=self.spec.get("line"))
             self.publisher = Publisher(self.zctx, self.spec["endpoint"], self.node_id, self.clock.now_ns,
-                                       curve=self.curve)
+                                       curve=self.curve, latched=self.latched)
             self.node = self.node_cls(self, params)
             with self.timed("setup"):
                 self.node.setup()
@@ -239,6 +245,9 @@ class NodeRuntime:
         while not self.stop_requested:
             if self.param_updates:
                 tool_control.apply_updates(self)
+            if self.publisher.last and time.monotonic() >= self.next_latch_poll:
+                self.next_latch_poll = time.monotonic() + LATCH_POLL_S
+                self.publisher.serve_late_joiners(lambda: self.stop_requested)
             for timer, missed in self.wall_timers.pop_due(time.monotonic_ns()):
                 timer.fire(missed)
             for timer, missed in self.timers.pop_due(self.clock.monotonic_ns()):

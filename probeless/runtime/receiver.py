@@ -4,6 +4,10 @@ It applies each input's queue policy as messages arrive, so a slow callback neve
 upstream unless the input asked for ``block``. It also owns the node's control socket (a DEALER
 to the launcher's ROUTER): readiness, start, status snapshots for lockstep replay, and the
 quiescence requests of a lockstep player. The node thread talks to it through ``send_control``.
+
+A latched topic's last message, sent again by its publisher when a subscriber joins late, arrives with
+the topic frame marked (``latching.LATCH_MARK``); an input takes it only while it has had no message
+of that topic yet (it is the late joiner), so the subscribers that had it all along never see it twice.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import zmq
 
 from probeless import wire
 from probeless.errors import SchemaError
+from probeless.runtime.latching import LATCH_MARK
 from probeless.runtime.queues import InputQueue
 from probeless.runtime.security import NodeCurve
 
@@ -124,6 +129,8 @@ class Receiver(threading.Thread):
             s.setsockopt(zmq.SUBSCRIBE, hello_topic(node_id, w.name))  # names this subscriber to the barrier
             self.socks[s] = w
         self.topic_bytes = {s: w.topic.encode() for s, w in self.socks.items()}
+        self.latched_bytes = {s: t + LATCH_MARK for s, t in self.topic_bytes.items()}
+        self.heard: set[zmq.Socket] = set()   # inputs that have had a message (a latched re-send is not for them)
         self.pending: dict[zmq.Socket, tuple] = {}
 
     def send_control(self, *parts: bytes, wake_tx: zmq.Socket) -> None:
@@ -227,8 +234,10 @@ class Receiver(threading.Thread):
         topic = self.topic_bytes[sock]
         while sock not in self.pending and sock.get(zmq.EVENTS) & zmq.POLLIN:
             frames = sock.recv_multipart(copy=False)
-            if frames[0].bytes != topic:
-                continue  # prefix match of another topic
+            head = frames[0].bytes
+            if head != topic and (head != self.latched_bytes[sock] or sock in self.heard):
+                continue  # prefix match of another topic, or a latched message re-sent for another (late) joiner
+            self.heard.add(sock)
             if wire.is_eos(frames):
                 self._push(w.name, (EOS_MARK, None))
                 poller.unregister(sock)

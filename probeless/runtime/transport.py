@@ -12,7 +12,8 @@ queue policy asks for, so backpressure is per subscriber:
   (``seq_gaps``) and shown by ``probeless topic info``. End-of-stream markers are the exception:
   they are sent losslessly on both sockets.
 
-XPUB also reports each subscription, which is what the readiness barrier counts. A pipe holds at
+XPUB also reports each subscription, which is what the readiness barrier counts, and what a latched
+output answers: it sends its last message again to the late joiner (``latching.py``). A pipe holds at
 most ``SEND_HWM`` messages at the publisher plus the subscriber's receive HWM (``receiver.py``),
 so a stopped subscriber costs bounded memory.
 """
@@ -22,13 +23,14 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
-from typing import Callable
+from typing import Any, Callable, Iterable
 
 import zmq
 
 from probeless import wire
 from probeless.errors import TransportError
 from probeless.messages.base import Message
+from probeless.runtime.latching import LATCH_MARK
 from probeless.runtime.security import NodeCurve
 
 log = logging.getLogger("probeless.transport")
@@ -72,6 +74,7 @@ class _Socket:
             raise TransportError(f"{publisher_id}: cannot bind {endpoint}: {exc}") from None
         self.subscriptions: Counter[str] = Counter()
         self._wanted: dict[str, bool] = {}
+        self.joined: set[str] = set()   # prefixes subscribed since the publisher last answered them (latched topics)
 
     def poll(self, timeout_ms: int) -> bool:
         """Read pending (un)subscribe notifications; True if any arrived."""
@@ -79,7 +82,10 @@ class _Socket:
         while self.sock.poll(timeout_ms, zmq.POLLIN):
             event = self.sock.recv()
             if event:
-                self.subscriptions[event[1:].decode(errors="replace")] += 1 if event[0] == 1 else -1
+                prefix = event[1:].decode(errors="replace")
+                self.subscriptions[prefix] += 1 if event[0] == 1 else -1
+                if event[0] == 1:
+                    self.joined.add(prefix)
                 changed = True
             timeout_ms = 0
         if changed:
@@ -98,7 +104,8 @@ class Publisher:
     """One node's outputs: a lossless and a lossy XPUB, per-topic seq, subscription counts."""
 
     def __init__(self, zctx: zmq.Context, endpoint: str, publisher_id: str,
-                 now_ns: Callable[[], int] = time.time_ns, curve: NodeCurve | None = None):
+                 now_ns: Callable[[], int] = time.time_ns, curve: NodeCurve | None = None,
+                 latched: Iterable[str] = ()):
         self.publisher_id = publisher_id
         self.now_ns = now_ns  # publish time: wall clock, or recorded time on replay (deterministic)
         self.lossy = _Socket(zctx, lossy_endpoint(endpoint), publisher_id, lossless=False, curve=curve)
@@ -110,6 +117,10 @@ class Publisher:
         self.socks = (self.lossy, self.lossless)  # lossy first: a waiting lossless send never delays them
         self.seq: Counter[str] = Counter()
         self.published: Counter[str] = Counter()
+        self.latched = set(latched)           # topics whose last message goes to late joiners (latching.py)
+        self.last: dict[str, list[bytes]] = {}  # latched topic -> its last message's frames after the topic
+        self.resent: Counter[str] = Counter()   # latched messages sent again for late joiners, per topic
+        self.ended = False                      # end of stream sent: nothing is re-sent any more
 
     @property
     def sock(self) -> zmq.Socket:
@@ -132,6 +143,8 @@ class Publisher:
         """Send recorded frames ``[meta, buffers...]`` unchanged on ``topic`` (bit-exact replay)."""
         self._send(topic, [topic.encode(), *frames], should_stop)
         self.published[topic] += 1
+        if topic in self.latched:
+            self.last[topic] = [_owned(f) for f in frames]
 
     def publish(self, topic: str, msg: Message, should_stop: Callable[[], bool]) -> None:
         """Send ``msg`` on ``topic`` with the next seq; waits only for ``block`` subscribers, until sent or stopped."""
@@ -140,9 +153,12 @@ class Publisher:
         frames = wire.encode(topic, msg, self.publisher_id, self.now_ns(), seq=seq)
         self._send(topic, frames, should_stop)
         self.published[topic] += 1
+        if topic in self.latched:
+            self.last[topic] = [_owned(f) for f in frames[1:]]  # a copy: the node may reuse its arrays
 
     def send_eos(self, topic: str, should_stop: Callable[[], bool]) -> None:
         """End of stream on ``topic``: lossless for every subscriber, lossy ones included."""
+        self.ended = True
         self.lossy.sock.setsockopt(zmq.XPUB_NODROP, 1)
         try:
             self._send(topic, [topic.encode(), wire.EOS], should_stop, every=True)
@@ -169,16 +185,47 @@ class Publisher:
                 note(", ".join(f"{t} ({subs[t]})" for t in busy))
         return False
 
+    def serve_late_joiners(self, should_stop: Callable[[], bool]) -> None:
+        """Read new subscriptions and send each latched topic's last message to those that joined since."""
+        for s in self.socks:
+            if s.sock.get(zmq.EVENTS) & zmq.POLLIN:
+                s.poll(0)
+            self._answer_joined(s, should_stop)
+
+    def _answer_joined(self, s: _Socket, should_stop: Callable[[], bool]) -> None:
+        """The last message of every latched topic a prefix in ``s.joined`` matches, marked as a re-send."""
+        if not s.joined:
+            return
+        joined, s.joined = s.joined, set()
+        if self.ended:
+            return
+        for topic, frames in self.last.items():
+            if any(topic.startswith(p) for p in joined):
+                _send_frames(s.sock, [topic.encode() + LATCH_MARK, *frames], should_stop)
+                self.resent[topic] += 1
+
     def _send(self, topic: str, frames: list, should_stop: Callable[[], bool], every: bool = False) -> None:
         for s in self.socks:
             if s.sock.get(zmq.EVENTS) & zmq.POLLIN:
                 s.poll(0)
+            if s.joined:  # on both sockets before the new message: a joiner has the latched ones first
+                self._answer_joined(s, should_stop)
+        for s in self.socks:
             if every or s.wanted(topic):
                 _send_frames(s.sock, frames, should_stop)
 
     def close(self) -> None:
         for s in self.socks:
             s.sock.close()
+
+
+def _owned(frame: Any) -> bytes:
+    """The bytes of a frame, copied out of buffers the sender may reuse (arrays, memoryviews, zmq frames)."""
+    if isinstance(frame, bytes):
+        return frame
+    if isinstance(frame, zmq.Frame):
+        return frame.bytes
+    return memoryview(frame).tobytes()
 
 
 def _send_frames(sock: zmq.Socket, frames: list, should_stop: Callable[[], bool]) -> None:
