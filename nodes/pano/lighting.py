@@ -9,7 +9,10 @@ akyuz and banterle always run numpy (:mod:`probeless.pano.itmo`).
 
 ``diffuse_map``: ``hdr`` (rgbf16/rgbf32 equirect; used as is when it is ``in_size``, else
 area-averaged) -> ``diffuse`` (rgbf32 ``out_size``): Algorithm 1 on the GPU (``gpu``), the numpy
-weight-matrix product (``matmul``) or 9 SH coefficients (``sh9``, Ramamoorthi-Hanrahan).
+weight-matrix product (``matmul``), 9 SH coefficients (``sh9``, Ramamoorthi-Hanrahan) or ``fast``
+(:func:`probeless.pano.diffuse_fast.diffuse_map_fast`: Algorithm 1 by FFT on a 256x128 average, the brightest
+texels summed from the full frame; within 1 % of the exact map on the HDR panoramas; the shipped graph's
+method, fed the full frame).
 ``weights: moments`` (gpu only) needs the full frame (``itmo``'s ``hdr``, not ``hdr_small``) and
 is near exact (see :mod:`probeless.pano.gpu_diffuse` and ``probeless pano diffuse``).
 Both keep the input header (stamp, frame_id).
@@ -24,6 +27,7 @@ import numpy as np
 from probeless.errors import SchemaError
 from probeless.messages.sensor import Image
 from probeless.pano.diffuse import diffuse_map, sh9_irradiance_map
+from probeless.pano.diffuse_fast import diffuse_map_fast
 from probeless.pano.expand import area_resize, expand_cpu
 from probeless.pano.gpu_itmo import GPU_OPERATORS
 from probeless.runtime import Node, param
@@ -122,8 +126,10 @@ class DiffuseMap(Node):
 
     @dataclass(frozen=True)
     class Params:
-        method: str = param("gpu", choices=("gpu", "matmul", "sh9"), doc="Algorithm 1 on the GPU, numpy weight "
-                                                                         "matrix, or 9 SH coefficients")
+        method: str = param("gpu", choices=("gpu", "matmul", "sh9", "fast"),
+                            doc="Algorithm 1 on the GPU, numpy weight matrix, 9 SH coefficients, or fast: Algorithm 1 "
+                                "by FFT on a 256x128 average with the brightest texels summed from the full frame "
+                                "(probeless.pano.diffuse_fast; give it the full frame)")
         out_size: tuple[int, ...] = param((32, 16), length=2, min=1, check=equirect_size("out_size"),
                                           doc="diffuse map size (W, H) [px]; W == 2 H")
         in_size: tuple[int, ...] = param((128, 64), length=2, min=1, check=equirect_size("in_size"),
@@ -152,6 +158,8 @@ class DiffuseMap(Node):
         with self.ctx.timed("diffuse"):
             if self.gpu is not None:
                 out = self.gpu.apply(data)  # the GPU area-averages when the size differs
+            elif self.params.method == "fast":
+                out = diffuse_map_fast(data, self.out_size)
             elif self.params.method == "matmul":
                 out = diffuse_map(area_resize(data, self.in_size), self.out_size, in_size=self.in_size)
             else:

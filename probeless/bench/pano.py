@@ -18,11 +18,13 @@ Side by side on the first HDR frame (paper ITMO, numpy, full 1280x640), each aga
 competent engineer would use, doing the same work, with its quality gate checked in the same run
 (:mod:`probeless.bench.pano_side`):
 
-* diffuse map 64x32: matmul and GPU from the full frame vs ``exact_diffuse`` (the exact FFT
-  convolution of the full frame, all texels): ``diffuse_speedup`` = exact / matmul,
-  ``diffuse_gpu_speedup`` = exact / GPU pass (on llvmpipe that "GPU" is the CPU too), both warm;
-  the weight build (``weights_build_ms``) and first-use times reported beside them; the gate
-  ``diffuse_gate_met``: max relative error <= 1 % on the frame and on the shared HDR panoramas;
+* diffuse map 64x32: the fast map (``diffuse_map_fast``: Algorithm 1 on a 256x128 area average by FFT
+  along longitude, the brightest texels from the full frame), matmul and GPU from the full frame vs
+  ``exact_diffuse`` (the exact FFT convolution of the full frame, all texels): ``diffuse_speedup`` =
+  exact / fast (``diffuse_method`` names it), ``diffuse_matmul_speedup`` = exact / matmul,
+  ``diffuse_gpu_speedup`` = exact / GPU pass (on llvmpipe that "GPU" is the CPU too), all warm; the
+  weight / kernel builds and first-use times reported beside them; the gate ``diffuse_gate_met``: the
+  fast map's max relative error <= 1 % on the frame and on the shared HDR panoramas;
 * glossy at equal cost (roughness 0.1, 36 lookups each): ring sampling vs Monte Carlo and filtered
   importance sampling with the same lookup count, all against a converged Monte Carlo truth:
   ``glossy_equal_cost_error_ratio`` = the better equal-cost error / the ring's error.
@@ -56,7 +58,7 @@ from probeless.bench.pano_frames import (  # noqa: F401
 from probeless.bench.pano_side import diffuse_side_by_side, glossy_side_by_side
 
 FULL = {"frames": 12, "stereo_frames": 4, "hdr_panoramas": None, "glossy_dirs": 256, "mc_samples": 4096,
-        "repeats": 3}
+        "repeats": 5}
 QUICK = {"frames": 3, "stereo_frames": 2, "hdr_panoramas": 2, "glossy_dirs": 48, "mc_samples": 1024, "repeats": 1}
 GOALS = {"diffuse_speedup_min": 50.0, "diffuse_max_rel_error_max": 0.01}
 
@@ -104,6 +106,7 @@ def summarize(timings: dict, diffuse: dict, gloss: dict, meta: dict) -> dict:
                  "diffuse_max_rel_error": bool(diffuse["diffuse_max_rel_error"] <= GOALS["diffuse_max_rel_error_max"])}
     return {**meta, "timings_ms": timings, "rates": rates, "diffuse": diffuse, "glossy": gloss,
             "diffuse_speedup": diffuse["diffuse_speedup"], "diffuse_gpu_speedup": diffuse["diffuse_gpu_speedup"],
+            "diffuse_matmul_speedup": diffuse["diffuse_matmul_speedup"], "diffuse_method": diffuse["diffuse_method"],
             "diffuse_reference": diffuse["diffuse_reference"],
             "diffuse_max_rel_error": diffuse["diffuse_max_rel_error"],
             "diffuse_gate_met": diffuse["diffuse_gate_met"], "weights_build_ms": diffuse["weights_build_ms"],
@@ -122,10 +125,12 @@ def print_table(r: dict) -> None:
     print("  rates [frames/s]: " + ", ".join(f"{k} {v:.1f}" for k, v in r["rates"].items()))
     d, g = r["diffuse"], r["glossy"]
     print(f"  diffuse map {d['size'][0]}x{d['size'][1]} from the {d['frame'][0]}x{d['frame'][1]} frame vs "
-          f"{d['diffuse_reference']}: exact {d['exact_ms']:.0f} ms, matmul {d['matmul_ms']:.1f} ms, GPU "
-          f"{d['gpu_ms']:.1f} ms (warm); weight build {d['weights_build_ms']:.0f} ms, first use matmul "
+          f"{d['diffuse_reference']}: exact {d['exact_ms']:.0f} ms, fast {d['fast_ms']:.1f} ms, matmul "
+          f"{d['matmul_ms']:.1f} ms, GPU {d['gpu_ms']:.1f} ms (warm); builds: kernels {d['fast_kernels_build_ms']:.0f}"
+          f" ms, weights {d['weights_build_ms']:.0f} ms; first use fast {d['fast_first_use_ms']:.0f} ms, matmul "
           f"{d['matmul_first_use_ms']:.0f} ms, GPU {d['gpu_first_use_ms']:.0f} ms")
-    print(f"    diffuse_speedup {d['diffuse_speedup']:.1f}x (matmul; GPU pass {d['diffuse_gpu_speedup']:.2f}x), goal "
+    print(f"    diffuse_speedup {d['diffuse_speedup']:.1f}x ({d['diffuse_method']}; matmul "
+          f"{d['diffuse_matmul_speedup']:.1f}x, GPU pass {d['diffuse_gpu_speedup']:.2f}x), goal "
           f">= {r['goals']['diffuse_speedup_min']:.0f}; max rel error {d['diffuse_max_rel_error']:.2e} over the frame"
           f" and {len(d['hdr_panoramas'])} HDR panoramas (gate <= {d['diffuse_gate']['max_rel_error_max']}: "
           f"{'met' if d['diffuse_gate_met'] else 'MISSED'})")

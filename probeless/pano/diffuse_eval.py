@@ -3,7 +3,8 @@
 For each HDR panorama and diffuse map size: the GPU maps (:class:`~probeless.pano.gpu_diffuse.GpuDiffuse`,
 Algorithm 1 on a ``gpu_in_size`` area average with sub-texel weights, ``gpu``, and with radiance
 moments, ``gpu_moments``), the numpy weight-matrix map (:func:`~probeless.pano.diffuse.diffuse_map`,
-its default input size) and the SH9 map against the exact per-texel convolution of the full frame,
+its default input size), the fast map (:func:`~probeless.pano.diffuse_fast.diffuse_map_fast`, ``fast``)
+and the SH9 map against the exact per-texel convolution of the full frame,
 every texel, with max and mean relative error. The exact maps come from :func:`exact_diffuse` (the
 brute-force sum, evaluated by FFT; checked against :func:`~probeless.pano.diffuse.diffuse_map_bruteforce`
 in the tests).
@@ -26,13 +27,14 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from probeless.pano.diffuse import IN_SIZES, MAX_WEIGHTS, diffuse_map, diffuse_weights, sh9_irradiance_map
+from probeless.pano.diffuse_fast import diffuse_map_fast
 from probeless.pano.equirect import check_equirect, pixel_directions, solid_angles
 from probeless.pano.sources import default_panoramas, read_panorama
 from probeless.progress import progress
 
 SIZES = ((32, 16), (64, 32), (128, 64))
 GPU_METHODS = {"gpu": "subtexel", "gpu_moments": "moments"}  # result key -> GpuDiffuse weights
-METHODS = ("gpu", "gpu_moments", "matmul", "sh9")
+METHODS = ("gpu", "gpu_moments", "matmul", "fast", "sh9")
 TIMED = METHODS[:-1]  # the fast paths with a speed-up (SH9 is scored, not timed)
 GATE = 0.01  # max relative error of a fast map against the exact one, every texel
 SPEEDUP_REFERENCE = "exact_diffuse (FFT convolution of the full-resolution frame, numpy float64, every texel)"
@@ -110,11 +112,14 @@ def evaluate_size(hdr: np.ndarray, size: tuple[int, int], gpus: dict[str, Any], 
     in_mm = matmul_in_size(size)
     diffuse_map(hdr, size, in_size=in_mm)  # warm: the weights are cached
     t_mm, mm = _best_time(lambda: diffuse_map(hdr, size, in_size=in_mm), repeats)
-    shapes = {"exact": list(exact.shape), "matmul": list(mm.shape)}
+    diffuse_map_fast(hdr, size)  # warm: kernels cached
+    t_fast, fast = _best_time(lambda: diffuse_map_fast(hdr, size), repeats)
+    shapes = {"exact": list(exact.shape), "matmul": list(mm.shape), "fast": list(fast.shape)}
     row: dict[str, Any] = {"matmul": rel_errors(mm, exact), "sh9": rel_errors(sh9_irradiance_map(hdr, size), exact),
                            "matmul_in_size": list(in_mm), "matmul_s": t_mm, "matmul_weights_s": weights_s,
                            "matmul_speedup": t_exact / t_mm, "matmul_first_use_speedup": t_exact / (weights_s + t_mm),
-                           "exact_s": t_exact, "texels": size[0] * size[1], "output_shapes": shapes}
+                           "exact_s": t_exact, "texels": size[0] * size[1], "output_shapes": shapes,
+                           "fast": rel_errors(fast, exact), "fast_s": t_fast, "fast_speedup": t_exact / t_fast}
     for method, gpu in gpus.items():
         gpu.apply(hdr)  # warm: first-use allocations
         t_gpu, fast = _best_time(lambda: gpu.apply(hdr), repeats)

@@ -60,15 +60,20 @@ def test_diffuse_side_by_side_is_equal_work_within_the_gate(result):
     d = result["diffuse"]
     assert "exact_diffuse" in result["diffuse_reference"] == d["diffuse_reference"]
     assert d["size"] == [64, 32] and d["texels"] == 2048
-    assert d["output_shapes"] == {"exact": [32, 64, 3], "matmul": [32, 64, 3], "gpu": [32, 64, 3]}
+    assert d["output_shapes"] == {"exact": [32, 64, 3], "fast": [32, 64, 3], "matmul": [32, 64, 3],
+                                  "gpu": [32, 64, 3]}
     assert d["frame"] == [1280, 640]
-    for key in ("exact_ms", "matmul_ms", "gpu_ms", "weights_build_ms", "matmul_first_use_ms", "gpu_first_use_ms"):
+    for key in ("exact_ms", "fast_ms", "matmul_ms", "gpu_ms", "weights_build_ms", "matmul_first_use_ms",
+                "gpu_first_use_ms", "fast_kernels_build_ms", "fast_first_use_ms"):
         assert positive(d[key]), key
     assert d["matmul_first_use_ms"] > d["matmul_ms"]  # the first use pays the weight build
+    assert "diffuse_map_fast" in d["diffuse_method"] and d["diffuse_gate"]["method"] == "fast"
     gate = d["diffuse_gate"]["max_rel_error_max"]
     errors = [*d["frame_errors"].values(), *(e for p in d["hdr_panoramas"].values() for e in p.values())]
     assert all(0 <= e["mean_rel_error"] <= e["max_rel_error"] for e in errors)
-    assert d["diffuse_gate_met"] is (max(e["max_rel_error"] for e in errors) <= gate)
+    fast = [d["frame_errors"]["fast"]["max_rel_error"], *(p["fast"]["max_rel_error"]
+                                                         for p in d["hdr_panoramas"].values())]
+    assert d["diffuse_max_rel_error"] == max(fast) and d["diffuse_gate_met"] is (max(fast) <= gate)
     assert d["frame_errors"]["matmul"]["max_rel_error"] < gate  # the video frame is smooth: well inside
     if HDRI.is_dir() and list(HDRI.glob("*.hdr")):
         assert len(d["hdr_panoramas"]) == bench_pano.QUICK["hdr_panoramas"] and d["hdr_panoramas_skipped"] is None
