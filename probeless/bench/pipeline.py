@@ -11,6 +11,7 @@ processes on 2 shared cores, so stage times include waiting for the CPU.
 
 from __future__ import annotations
 
+import os
 import sys
 import tempfile
 import time
@@ -78,6 +79,11 @@ def run_bench(quick: bool = False, seconds: float | None = None) -> dict:
                     latencies.append((m.publish_time_ns - stamp) / 1e6)
                     publish.append(m.publish_time_ns)
     means = _stage_means(statuses)
+    from probeless.gl.context import create_context, device_name
+
+    ctx = create_context()  # the device every GL node of the graph chose the same way (probeless.gl.context)
+    gl_device = device_name(ctx)
+    ctx.release()
     rows = []
     for label, node, names in STAGES:
         vals = [means.get(node, {}).get(s) for s in names]
@@ -93,7 +99,8 @@ def run_bench(quick: bool = False, seconds: float | None = None) -> dict:
              for i in st.inputs if i.dropped or i.seq_gaps}
     span = (publish[-1] - publish[0]) / 1e9 if len(publish) > 1 else float("nan")
     lat = np.array(latencies) if latencies else np.array([np.nan])
-    return {"scene_seconds": seconds, "wall_s": round(wall, 1), "stages": rows, "stage_sum_ms": round(total, 1),
+    return {"scene_seconds": seconds, "wall_s": round(wall, 1), "gl_device": gl_device, "stages": rows,
+            "stage_sum_ms": round(total, 1),
             "augmented_frames": len(publish),
             "output_fps": round((len(publish) - 1) / span, 2) if len(publish) > 1 else None,
             "latency_rgb_to_augmented_ms": {"p50": round(float(np.nanpercentile(lat, 50)), 1),
@@ -102,7 +109,8 @@ def run_bench(quick: bool = False, seconds: float | None = None) -> dict:
 
 
 def print_table(r: dict) -> None:
-    print(f"full pipeline, {r['scene_seconds']} s of scene ({r['wall_s']} s wall), 2 shared cores, llvmpipe")
+    print(f"full pipeline, {r['scene_seconds']} s of scene ({r['wall_s']} s wall), {os.cpu_count()} cores, "
+          f"GL on {r['gl_device']}")
     print(f"{'stage':<34}{'node':<12}{'ms':>9}{'%':>7}")
     for row in r["stages"]:
         ms = "-" if row["ms"] is None else f"{row['ms']:.1f}"

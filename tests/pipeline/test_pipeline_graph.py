@@ -22,6 +22,11 @@ def test_full_pipeline_runs_and_reports_every_stage():
         assert stages[name]["ms"] is not None and stages[name]["ms"] > 0, name
     assert abs(sum(s["percent"] for s in r["stages"] if s["percent"] is not None) - 100) < 0.5
     assert 0 < r["latency_rgb_to_augmented_ms"]["p50"] <= r["latency_rgb_to_augmented_ms"]["p99"]
+    import moderngl  # the device it ran on, as GL itself names this machine's default EGL device
+
+    ctx = moderngl.create_standalone_context(backend="egl")
+    assert r["gl_device"] == f"{ctx.info['GL_VENDOR']} {ctx.info['GL_RENDERER']}"
+    ctx.release()
 
 
 # The graph from a recording, in lockstep: tests/pipeline/test_graph_scene_files.py.

@@ -102,12 +102,13 @@ def test_web_viewer_loads_connects_and_shows_the_lounge_pipeline(tmp_path):
                 _wait_line(proc, "serving the run to web viewers for 600 s more", 300, seen)
             finally:
                 os.killpg(browser.pid, signal.SIGCONT)
-            _wait_responsive(page, 120)                              # the viewer catches up
+            _wait_responsive(page, 45)                               # the viewer catches up (under load it
+            # never answers quickly: the software renderer keeps its thread busy, so the wait is bounded)
             page.mouse.click(1500, 700)                              # focus the canvas, then pause on the
             page.keyboard.press("Space")                             # latest frame so its JPEGs get decoded
-            _wait_responsive(page, 60)
+            _wait_responsive(page, 20)
             SHOT.parent.mkdir(parents=True, exist_ok=True)
-            shot = _screenshot_with_frames(page, 120)
+            shot = _screenshot_with_frames(page, 45)
         t_int = time.monotonic()
         os.killpg(proc.pid, signal.SIGINT)                           # Ctrl-C ends the sink's lingering
         log = "".join(seen) + finish(proc, 120, "launch probeless.yaml viewer:=rerun")
