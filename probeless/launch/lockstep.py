@@ -32,7 +32,7 @@ class QuiescenceCheck:
         if self.previous is not None:
             return 0.0
         self.busy_rounds += 1
-        return min(0.00025 * 2 ** (self.busy_rounds - 1), 0.008)
+        return 0.00025 * 2 ** min(self.busy_rounds - 1, 5)  # 8 ms from the sixth round on (a long stage)
 
     def begin_round(self, alive: list[str]) -> list[str]:
         """Start a collect; returns the node ids to ask for status."""
