@@ -1,4 +1,5 @@
-"""``probeless calibrate fisheye`` and ``probeless calibrate extrinsics``: parsers and commands.
+"""``probeless calibrate fisheye|extrinsics|response|vignetting``: parsers and commands (response and vignetting:
+probeless.cameras.radiometry_cli).
 
 Errors are raised as CalibrationError (or BagError) and printed by probeless.cli, which exits 2.
 """
@@ -21,7 +22,8 @@ def add_calibrate_parser(sub: Any) -> argparse.ArgumentParser:
     """Add ``calibrate`` (with ``fisheye`` and ``extrinsics``) to the subparsers of ``probeless``."""
     from probeless.cameras.calibrate import FISHEYE_MODELS
 
-    p = sub.add_parser("calibrate", help="calibrate the fisheye (chessboard) and the RGB-D-to-fisheye transform")
+    p = sub.add_parser("calibrate", help="calibrate the fisheye (chessboard), the RGB-D-to-fisheye transform "
+                                            "and the camera's radiometry (response, vignetting, white balance)")
     cs = p.add_subparsers(dest="calibrate_command", required=True)
     f = cs.add_parser("fisheye", help="fisheye intrinsics from chessboard images")
     f.add_argument("--images", required=True, metavar="GLOB", help="quoted glob of the images, e.g. 'dir/*.jpg'")
@@ -66,6 +68,10 @@ def add_calibrate_parser(sub: Any) -> argparse.ArgumentParser:
     e.add_argument("--force", action="store_true", help="overwrite OUT")
     e.add_argument("--no-progress", action="store_true", help="no progress bar")
     e.set_defaults(func=cmd_extrinsics)
+
+    from probeless.cameras.radiometry_cli import add_radiometry_parsers
+
+    add_radiometry_parsers(cs)
     return p
 
 

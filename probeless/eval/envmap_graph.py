@@ -12,6 +12,10 @@ topic is recorded and every map is scored against the recording's truth for the 
 Linear (HDR) maps (``lighting:=hdr``, which ``photo:=FILE`` selects) are scored with the same scores, as linear
 (``score_envmap(..., linear=True)``): unclipped for the HDR ones, as the camera would clip them for the LDR ones.
 
+With ``lightings`` (``--graph-lighting ldr hdr``) each method runs once per lighting mode (``lighting:=NAME``),
+and every run is scored on the texels all of them observed, so LDR and HDR lighting compare on the same texels in
+one table.
+
 A scene file is rendered first (cached under ``out/cache/eval_envmap`` by the scene file's content, the
 duration and the truth size).
 """
@@ -82,18 +86,26 @@ def _run(cmd: list[str], log: Path, show_output: bool) -> None:
         raise ProbelessError(f"`{' '.join(cmd)}` failed (exit {proc.returncode}); log {log}:\n{tail}")
 
 
+def run_label(method: str, lighting: str | None) -> str:
+    """A run's name in the results: the method, with ``[lighting]`` when runs compare lighting modes."""
+    return method if lighting is None else f"{method}[{lighting}]"
+
+
 def run_graph(graph: str, recording: Path, objects: str, method: str, out_dir: Path, args: list[str],
-              show_progress: bool, record: tuple[str, ...] = ()) -> GraphRun:
-    """Launch ``graph`` in lockstep on ``recording`` with ``method``'s envmap node; read back its maps. The run's
-    ``maps.mcap`` also records the topics in ``record`` (e.g. ``slam/model/points``)."""
-    run_dir = out_dir / method
+              show_progress: bool, record: tuple[str, ...] = (), lighting: str | None = None) -> GraphRun:
+    """Launch ``graph`` in lockstep on ``recording`` with ``method``'s envmap node (and ``lighting:=lighting`` when
+    given); read back its maps. The run's ``maps.mcap`` also records the topics in ``record`` (e.g.
+    ``slam/model/points``)."""
+    label = run_label(method, lighting)
+    run_dir = out_dir / label.replace("[", "_").replace("]", "")
     maps = run_dir / "maps.mcap"
+    extra = [] if lighting is None else [f"lighting:={lighting}"]
     cmd = [sys.executable, "-m", "probeless", "launch", graph, "source:=recording", f"bag:={recording}", "rate:=0",
-           f"objects:={objects}", f"envmap_node:={GRAPH_METHODS[method]}", f"out_dir:={run_dir}", *args,
+           f"objects:={objects}", f"envmap_node:={GRAPH_METHODS[method]}", f"out_dir:={run_dir}", *args, *extra,
            "--record", str(maps), "--record-topics", "envmap/envmaps", *record, "--force"]
     _run(cmd, run_dir / "launch.log", show_progress)
     found, linear = read_maps(maps)
-    return GraphRun(method, found, run_dir / "launch.log", linear)
+    return GraphRun(label, found, run_dir / "launch.log", linear)
 
 
 def read_maps(path: Path) -> tuple[dict[tuple[str, int], tuple[np.ndarray, np.ndarray | None]], bool]:
@@ -200,8 +212,10 @@ def _down(mask: np.ndarray | None, size: int) -> np.ndarray | None:
 
 def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: float | None, envmap_size: int,
                    out_dir: Path, graph_args: list[str], show_progress: bool, cache: Path = CACHE,
-                   record: tuple[str, ...] = ()) -> dict[str, Any]:
-    """Render (a scene) or take (a recording), run the graph once per method, score (module doc)."""
+                   record: tuple[str, ...] = (), lightings: list[str] | None = None) -> dict[str, Any]:
+    """Render (a scene) or take (a recording), run the graph once per method (and per lighting mode of
+    ``lightings``: runs ``ours[ldr]``, ``ours[hdr]``, ...), score every run on the texels all runs observed
+    (module doc)."""
     from probeless.eval.envmap import scene_path
     from probeless.progress import progress
 
@@ -209,10 +223,16 @@ def evaluate_graph(source: str, *, graph: str, methods: list[str], duration: flo
     scene = scene_path(source)
     recording = Path(source) if Path(source).suffix == ".mcap" else render_recording(source, duration, envmap_size,
                                                                                       show_progress, cache)
+    if lightings is not None and (not lightings or len(set(lightings)) != len(lightings)):
+        raise ProbelessError(f"--graph-lighting needs distinct lighting modes, got {lightings}")
+    if lightings is not None and any(a.startswith("lighting:=") for a in graph_args):
+        raise ProbelessError("give the lighting modes with --graph-lighting or --graph-arg lighting:=, not both")
+    plan = [(m, li) for m in methods for li in (lightings or [None])]
     runs = {}
-    with progress(len(methods), f"graph runs on {Path(source).name}", enabled=show_progress) as tick:
-        for method in methods:
-            runs[method] = run_graph(graph, recording, scene, method, out_dir, graph_args, show_progress, record)
+    with progress(len(plan), f"graph runs on {Path(source).name}", enabled=show_progress) as tick:
+        for method, lighting in plan:
+            run = run_graph(graph, recording, scene, method, out_dir, graph_args, show_progress, record, lighting)
+            runs[run.method] = run
             tick()
     scores = score_runs(runs, read_truth(recording))
     result: dict[str, Any] = {"mode": "graph", "graph": graph, "scene": scene, "recording": str(recording),

@@ -17,6 +17,9 @@ def add_graph_arguments(p) -> None:
                                                      "launch/probeless.yaml) and score its envmap topics")
     g.add_argument("--graph-methods", nargs="+", choices=list(GRAPH_METHODS), default=list(GRAPH_METHODS),
                    help="envmap_node swaps to run (default: ours baseline)")
+    g.add_argument("--graph-lighting", nargs="+", metavar="MODE",
+                   help="run each method once per lighting mode (lighting:=MODE, e.g. ldr hdr) and score every run "
+                        "on the texels all runs observed: the modes compare in one table")
     g.add_argument("--graph-arg", action="append", default=[], metavar="NAME:=VALUE",
                    help="extra graph argument for every run, e.g. dense:=false (repeatable)")
     g.add_argument("--truth-size", type=int, default=32, help="truth cubemap face size when rendering a scene "
@@ -38,10 +41,10 @@ def graph_table(result: dict[str, Any]) -> str:
     linear = [m for m, lin in result.get("linear_maps", {}).items() if lin]
     hdr = f"; linear (HDR) maps: {', '.join(linear)}" if linear else ""
     lines = [f"mode: graph ({result['graph']}, lockstep on {result['recording']}{hdr})",
-             f"{'method':<10}{'object':<10}" + "".join(f"{k:>21}" for k in cols)]
+             f"{'method':<15}{'object':<10}" + "".join(f"{k:>21}" for k in cols)]
     for method, objects in result["methods"].items():
         for oid, e in objects.items():
-            lines.append(f"{method:<10}{oid:<10}" + "".join(f"{e[k]:>21.3f}" for k in cols))
+            lines.append(f"{method:<15}{oid:<10}" + "".join(f"{e[k]:>21.3f}" for k in cols))
     return "\n".join(lines)
 
 
@@ -59,7 +62,7 @@ def run_graph_mode(ns) -> int:
         result = evaluate_graph(ns.scene, graph=ns.graph, methods=ns.graph_methods, duration=ns.duration,
                                 envmap_size=ns.truth_size, out_dir=Path(ns.runs_dir) / Path(ns.scene).stem,
                                 graph_args=ns.graph_arg, show_progress=not ns.no_progress, cache=Path(ns.cache),
-                                record=tuple(ns.graph_record))
+                                record=tuple(ns.graph_record), lightings=ns.graph_lighting)
     if getattr(ns, "figure", None):
         plot_graph(result, ns.figure)
     return emit(ns, result, graph_table)

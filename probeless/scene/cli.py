@@ -42,6 +42,9 @@ def add_scene_parser(sub) -> None:
     c.add_argument("--t", type=float, default=0.0, help="scene time [s]")
     c.add_argument("-o", "--output", required=True, metavar="SHEET.png")
     c.set_defaults(func=cmd_compare)
+    from probeless.scene.rig_bracket import add_bracket_parser
+
+    add_bracket_parser(cmds)  # probeless scene bracket: radiometric calibration frames
 
 
 def cmd_check(ns: argparse.Namespace) -> int:
