@@ -40,7 +40,6 @@ class BagPlayer(Node):
     """Publishes the messages of an MCAP recording on their (remapped) topics."""
 
     OUTPUTS = {"*": None, "clock": Clock}
-    CLOCK_SOURCE = True
 
     @dataclass(frozen=True)
     class Params:

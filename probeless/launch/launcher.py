@@ -28,7 +28,7 @@ import zmq
 from probeless.errors import GraphErrors, ProbelessError
 from probeless.launch.graph import parse_graph
 from probeless.launch.lockstep import QuiescenceCheck
-from probeless.launch.plan import build_plan, clock_source, new_run_dir
+from probeless.launch.plan import build_plan, new_run_dir
 from probeless.launch.validate import validate
 
 _PR_SET_PDEATHSIG = 1
@@ -96,7 +96,7 @@ class Launcher:
         self.out = out
         self.print_lock = threading.Lock()
         self.run_dir = new_run_dir()
-        self.plan = build_plan(graph, self.run_dir, clock_node=clock_node or clock_source(graph))
+        self.plan = build_plan(graph, self.run_dir, clock_node=clock_node)
         (self.run_dir / "graph.json").write_text(json.dumps(self.plan, indent=1))
         selected = [n for n in self.plan["nodes"].values() if only is None or n["host"] == only]
         if only is not None and not selected:

@@ -25,14 +25,6 @@ def _output(decl, name: str) -> dict[str, Any]:
     return out
 
 
-def clock_source(graph: Graph) -> str | None:
-    """The node every other one follows in time: the graph's only player of a recording (``CLOCK_SOURCE``), so a
-    graph whose source is a recording runs its timers in recorded time, as ``--replay`` does; None with none or
-    several (host time)."""
-    ids = [i for i, cls in graph.node_classes.items() if getattr(cls, "CLOCK_SOURCE", False)]
-    return ids[0] if len(ids) == 1 else None
-
-
 def new_run_dir() -> Path:
     """A fresh private directory for this run's ipc sockets and graph spec (short: ipc paths are limited)."""
     base = runs_base()

@@ -78,8 +78,6 @@ class Node:
     INPUTS: ClassVar[dict[str, type[Message] | None]] = {}
     OUTPUTS: ClassVar[dict[str, type[Message] | None]] = {}
     RAW_INPUTS: ClassVar[bool] = False
-    # a player of recorded time: alone in a graph, every other node follows its ``clock`` output (timers, now_ns)
-    CLOCK_SOURCE: ClassVar[bool] = False
     Params: ClassVar[type] = NoParams
 
     def __init__(self, ctx: Context, params: Any):

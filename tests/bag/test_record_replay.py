@@ -138,44 +138,21 @@ def test_replay_rate_scales_intervals_and_nodes_follow_recorded_time(tmp_path, r
     assert np.median(wall) == pytest.approx(np.median(np.diff(stamps)) / 1e6 / 2, rel=0.3)  # twice as fast
 
 
-def test_a_graph_whose_source_is_a_player_follows_recorded_time(tmp_path, recorded):
-    """No --replay: the graph's own ``bag_player`` node (a recording source, as launch/sources/recording.yaml) is
-    its clock, so a node's timers and ctx.now_ns() run in recorded time (lockstep: now = each message's log time);
-    with two players nobody is the clock and nodes keep host time (two lockstep players are refused at check: each
-    would wait for the other)."""
-    stamps = [m.log_time_ns for m in BagReader(recorded).messages("src/image")]
+def test_two_lockstep_players_are_refused_at_check(tmp_path, recorded):
+    """Each lockstep player waits until every other node is idle, so two would wait for each other forever (a
+    graph that once hung until its timeout): `probeless check` names the second one; one at a rate > 0 is fine."""
     player = """
   - id: {id}
     node: bag_player
-    params: {{path: {bag}, rate: 0, lockstep: true, topics: [src/image], remap: ["src/image:={id}_image"]}}
+    params: {{path: {bag}, rate: {rate}, topics: [src/image], remap: ["src/image:={id}_image"]}}
 """
-    g = write(tmp_path / "own.yaml", "nodes:" + player.format(id="rec", bag=recorded) + f"""
-  - id: watch
-    node: nodes_for_tests:ClockWatcher
-    inputs: {{image: {{source: rec/rec_image, policy: block}}}}
-    params: {{out: {tmp_path / "watch.json"}}}
-""")
-    code, log = run(g)
-    assert code == 0, log
-    w = json.loads((tmp_path / "watch.json").read_text())
-    assert w["simulated"] and w["now"] == stamps
-    both = write(tmp_path / "both.yaml", "nodes:" + player.format(id="a", bag=recorded)
-                 + player.format(id="b", bag=recorded))
+    both = write(tmp_path / "both.yaml", "nodes:" + player.format(id="a", bag=recorded, rate=0)
+                 + player.format(id="b", bag=recorded, rate=0))
     errors = validate(parse_graph(both))
     assert [(e.node_id, e.key) for e in errors] == [("b", "params")] and "second lockstep player" in str(errors[0])
-    player = player.replace("rate: 0, lockstep: true", "rate: 20, lockstep: false")
-    two = write(tmp_path / "two.yaml", "nodes:" + player.format(id="a", bag=recorded)
-                + player.format(id="b", bag=recorded) + f"""
-  - id: watch
-    node: nodes_for_tests:ClockWatcher
-    inputs: {{image: {{source: a/a_image, policy: block}}}}
-    params: {{out: {tmp_path / "watch2.json"}}}
-""")
-    t0 = time.time_ns()                                                    # after the recording was made
-    code, log = run(two)
-    assert code == 0, log
-    w = json.loads((tmp_path / "watch2.json").read_text())
-    assert not w["simulated"] and len(w["now"]) == len(stamps) and min(w["now"]) > t0 > max(stamps)
+    one = write(tmp_path / "one.yaml", "nodes:" + player.format(id="a", bag=recorded, rate=0)
+                + player.format(id="b", bag=recorded, rate=2))
+    assert validate(parse_graph(one)) == []
 
 
 def test_loop_restarts_and_resets_node_time(tmp_path, recorded):
