@@ -75,6 +75,7 @@ class GgxPrefilter:
 
 LIGHT_FACE = 32    # face size at which bright texels become lights [texels]
 LIGHTS = 128       # lights taken out of a map at most (ibl_specular.glsl's IBL_MAX_LIGHTS) [count]
+LIGHT_SPLIT = 4    # each light is also split into LIGHT_SPLIT^2 parts, for lobes narrower than a light [count]
 
 
 def extract_lights(faces: np.ndarray, count: int = LIGHTS, face: int = LIGHT_FACE
@@ -86,21 +87,37 @@ def extract_lights(faces: np.ndarray, count: int = LIGHTS, face: int = LIGHT_FAC
     direction, its integrated radiance), so the map minus the lights is the residual exactly. The renderer sums the
     lights with the exact BRDF and reads the residual, whose contrast is now bounded, through the prefiltered chain.
     """
+    residual, dirs, powers, _, _ = extract_light_parts(faces, count, face, 1)
+    return residual, dirs, powers
+
+
+def extract_light_parts(faces: np.ndarray, count: int = LIGHTS, face: int = LIGHT_FACE, split: int = LIGHT_SPLIT
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`extract_lights` plus each light cut into ``split`` x ``split`` parts: (residual, directions (n, 3),
+    powers (n, 3), part directions (n, split², 3), part powers (n, split², 3)); a light's parts add up to it.
+
+    A light is a texel of ``face`` (2.8 degrees at 32 px): as a point it is right for lobes much wider than that, but a
+    roughness-0.2 lobe is as narrow as the texel, and the window or lamp inside it is smaller still. Its parts (each
+    the solid-angle-weighted centroid and integrated excess of a sub-block of the map's texels) are what such a lobe
+    sums. ``split`` must divide the map's texels per light texel.
+    """
     from probeless.color import REC709_Y
     from probeless.geom.cube import cube_directions, cube_solid_angles
 
     f = np.asarray(faces, np.float32)[..., :3]
     size = f.shape[1]
     k = size // face if size >= face and size % face == 0 else 0
+    empty = np.zeros((0, 3), np.float32)
     if count <= 0 or k == 0:
-        return f, np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)
+        return f, empty, empty, np.zeros((0, split * split, 3), np.float32), np.zeros((0, split * split, 3), np.float32)
+    split = split if k % split == 0 else 1
     dw = cube_solid_angles(size).astype(np.float32)
     small = (f * dw[..., None]).reshape(6, face, k, face, k, 3).sum(axis=(2, 4))
     small /= dw.reshape(6, face, k, face, k).sum(axis=(2, 4))[..., None]
     y = small @ REC709_Y
     flat = np.sort(y.ravel())
     if len(flat) <= count:
-        return f, np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32)
+        return f, empty, empty, np.zeros((0, split * split, 3), np.float32), np.zeros((0, split * split, 3), np.float32)
     level = float(flat[-count - 1])
     keep = np.where(y > level, level / np.maximum(y, 1e-30), 1.0).astype(np.float32)  # residual / map per texel
     keep_full = np.repeat(np.repeat(keep, k, axis=1), k, axis=2)[..., None]
@@ -110,11 +127,23 @@ def extract_lights(faces: np.ndarray, count: int = LIGHTS, face: int = LIGHT_FAC
     lit = np.argwhere(y > level)
     dirs = cube_directions(size)
     dirs = dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
-    out_d, out_p = [], []
+    q = k // split
+
+    def centroid(d, w, p):
+        c = (d * w[..., None]).reshape(-1, 3).sum(axis=0)
+        if np.linalg.norm(c) < 1e-30:
+            c = d.reshape(-1, 3).sum(axis=0)
+        return c / np.linalg.norm(c), p.reshape(-1, 3).sum(axis=0)
+
+    out_d, out_p, part_d, part_p = [], [], [], []
     for fc, r, c in lit:
         sl = (fc, slice(r * k, (r + 1) * k), slice(c * k, (c + 1) * k))
-        w = weight[sl]
-        centroid = (dirs[sl] * w[..., None]).sum(axis=(0, 1))
-        out_d.append(centroid / max(np.linalg.norm(centroid), 1e-30))
-        out_p.append(excess[sl].sum(axis=(0, 1)))
-    return residual, np.asarray(out_d, np.float32), np.asarray(out_p, np.float32)
+        d, p = centroid(dirs[sl], weight[sl], excess[sl])
+        out_d.append(d)
+        out_p.append(p)
+        cells = [(slice(i * q, (i + 1) * q), slice(j * q, (j + 1) * q)) for i in range(split) for j in range(split)]
+        parts = [centroid(dirs[sl][c], weight[sl][c], excess[sl][c]) for c in cells]
+        part_d.append([x[0] for x in parts])
+        part_p.append([x[1] for x in parts])
+    return (residual, np.asarray(out_d, np.float32), np.asarray(out_p, np.float32), np.asarray(part_d, np.float32),
+            np.asarray(part_p, np.float32))

@@ -9,10 +9,14 @@ load time by ray casting against the object, dotted with the object's SH each fr
 Specular (``probeless/gl/glsl/ibl_specular.glsl``; GGX, alpha = roughness², Schlick Fresnel, separable Smith masking,
 Filament's multiple-scattering compensation unless ``energy_compensation=False``). The ``lobe`` argument:
 
-* ``hybrid`` (default): the lobe is importance-sampled (visible normals, filtered trilinear lookups, the samples
-  spread over the pixel: antialiased); lobes rougher than 0.18 (for 256-px faces) sample the map minus its
-  brightest texels (:func:`probeless.ibl.prefilter.extract_lights`) and add those texels as lights with the exact
-  BRDF, so a small, very bright light weighs exactly its share;
+* ``hybrid`` (default): the lobe is importance-sampled (visible normals, filtered trilinear lookups) over the
+  pixel's whole footprint: a grid of sub-pixel cells, each on the exact surface under it (the osculating quadric of
+  the pixel centre, hit by the cell's camera ray), with as many lookups as the footprint and the lobe cover level-0
+  texels (16 each, at least ``spec_samples`` / ``aa_samples``, at most 2048); lobes rougher than 0.18 (for 256-px
+  faces) sample the map minus its brightest texels (:func:`probeless.ibl.prefilter.extract_light_parts`) and add
+  those texels as lights with the exact BRDF, averaged over a grid of sub-pixel frames as fine as the lobe needs,
+  each light near the reflection of a narrow lobe as its 16 parts, so a small, very bright light weighs exactly
+  its share in every pixel;
 * ``split_sum``: the GGX-prefiltered chain (:mod:`probeless.ibl.prefilter`, trilinear between levels) times the DFG
   term (:mod:`probeless.ibl.dfg`), the classic split sum (cheap, 10-20 % RMS off a path tracer at mid roughness);
   ``sampled``: importance sampling of the whole map; ``texel_sum``: exact sums over a 16-32 px level (a slow
@@ -39,15 +43,15 @@ from probeless.ibl.dfg import dfg_table
 from probeless.ibl.lighting import Lighting, glossy_faces
 from probeless.ibl.materials import shading
 from probeless.ibl.mesh_io import PlacedMesh
-from probeless.ibl.prefilter import GgxPrefilter, chain_levels, extract_lights, level_roughness
+from probeless.ibl.prefilter import LIGHT_FACE, GgxPrefilter, chain_levels, extract_light_parts, level_roughness
 
 SHADERS = Path(__file__).with_name("shaders")
 LOBES = ("hybrid", "split_sum", "texel_sum", "sampled")
 SUM_ROUGHNESS = 0.3  # "texel_sum": lobes at least this rough are summed over the texels of a small mip level
 SUM_FACE = ((0.55, 16), (SUM_ROUGHNESS, 32))  # (roughness from, face size of the summed level [texels])
 MAX_LIGHTS = 128   # object.frag.glsl's MAX_LIGHTS (>= probeless.ibl.prefilter.LIGHTS)
-SPEC_SAMPLES = 128  # lookups per pixel of a rough specular lobe (importance-sampled, filtered) [count]
-AA_SAMPLES = 64    # lookups per pixel of a mirror (roughness 0) or a refraction, spread over the pixel [count]
+SPEC_SAMPLES = 128  # lookups per pixel of a rough specular lobe at least (importance-sampled, filtered) [count]
+AA_SAMPLES = 64    # lookups per pixel of a mirror (roughness 0) or a refraction at least, over the pixel [count]
 
 
 def sum_level(roughness: float, size: int) -> int:
@@ -111,7 +115,7 @@ class _Gpu:
             self.floor_vao = ctx.vertex_array(floor_prog, [(self.floor_pos, "3f", "in_position"),
                                                            (self.floor_ratio, "3f", "in_ratio")],
                                               index_buffer=self.floor_ibo)
-        self.env = self.glossy = self.chain = self.residual = None
+        self.env = self.glossy = self.chain = self.residual = self.parts = None
         self.sum_level = -1
         self.lights = (np.zeros((0, 3), "f4"), np.zeros((0, 3), "f4"))  # (directions, powers) of the lobe's lights
 
@@ -126,8 +130,12 @@ class _Gpu:
         rough = spec and self.shade.roughness >= level_roughness(chain_levels(lighting.faces.shape[1]))[1]
         self.lights = (np.zeros((0, 3), "f4"), np.zeros((0, 3), "f4"))
         if rough and lobe == "hybrid":
-            residual, *self.lights = extract_lights(lighting.faces)
+            residual, dirs, powers, part_dirs, part_powers = extract_light_parts(lighting.faces)
+            self.lights = (dirs, powers)
             self.residual = upload_cube(ctx, residual)
+            if len(dirs):
+                parts = np.concatenate([part_dirs, part_powers])  # row k: light k's part directions, n + k: powers
+                self.parts = upload_texture(ctx, np.ascontiguousarray(parts, np.float32), filter="nearest")
         self.chain, levels = prefilter.chain(lighting.faces) if rough and lobe == "split_sum" else (None, 1)
         self.chain_max_level = float(levels - 1)
         self.sum_level = sum_level(self.shade.roughness, lighting.faces.shape[1]) if lobe == "texel_sum" else -1
@@ -145,10 +153,10 @@ class _Gpu:
             self.floor_ratio.write(ratio.astype("f4").tobytes())
 
     def release_textures(self) -> None:
-        for tex in (self.env, self.glossy, getattr(self, "chain", None), getattr(self, "residual", None)):
+        for tex in (self.env, self.glossy, self.chain, self.residual, self.parts):
             if tex is not None:
                 tex.release()
-        self.env = self.glossy = self.chain = self.residual = None
+        self.env = self.glossy = self.chain = self.residual = self.parts = None
 
     def release(self) -> None:
         self.release_textures()
@@ -223,6 +231,7 @@ class IblRenderer:
             g.env.use(0)
             (g.chain or g.env).use(3)
             (g.residual or g.env).use(4)
+            (g.parts or self.dfg).use(5)
             set_uniforms(p, env=0, glossy=1, dfg=2, chain=3, residual=4, chain_max_level=g.chain_max_level,
                          split_sum=g.chain is not None, sum_level=int(g.sum_level), use_levels=g.glossy is not None,
                          env_size=g.env_size,
@@ -234,7 +243,8 @@ class IblRenderer:
             if "sh_irr" in p:
                 p["sh_irr"].write(g.sh_irr.tobytes())
             n_lights = len(g.lights[0])
-            set_uniforms(p, light_count=n_lights)
+            set_uniforms(p, light_count=n_lights, light_parts=5, light_split=g.parts.width if g.parts else 0,
+                         light_size=float(np.pi / (2 * LIGHT_FACE)))
             if n_lights and "light_dir" in p:
                 p["light_dir"].write(np.pad(g.lights[0], ((0, MAX_LIGHTS - n_lights), (0, 0))).astype("f4").tobytes())
                 p["light_power"].write(np.pad(g.lights[1], ((0, MAX_LIGHTS - n_lights), (0, 0))).astype("f4").tobytes())

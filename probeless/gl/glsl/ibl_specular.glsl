@@ -2,14 +2,20 @@
 // importance sampling the visible normals (Heitz 2018) with filtered lookups (Colbert & Krivanek 2007: each sample
 // reads the mip level whose texels match its share of the lobe's solid angle), Schlick Fresnel per sample, Smith
 // masking, and the multiple-scattering energy compensation of Filament (1 + f0 (1 / E_ss - 1), E_ss from the DFG
-// table). Samples are spread over the pixel's footprint too (the derivatives of the normal and of the view ray), so
-// mirrors (alpha 0) and refractions are antialiased: several sub-pixel lookups at the level of their spacing.
+// table). Samples are spread over the pixel's footprint too (a grid of sub-pixel cells, as many lookups as the
+// footprint covers texels: ibl_sample_count), so mirrors (alpha 0) and refractions are antialiased.
 // Roughness is perceptual: GGX alpha = roughness^2. Directions are world directions, I from the eye to the surface.
 // An include file: no #version, no #include; the includer declares nothing of it.
 
 const float IBL_PI = 3.14159265358979;
 const float IBL_MIN_ALPHA = 1e-4;
 const float IBL_LOD_BIAS = 0.0;
+#ifndef IBL_DENSITY
+#define IBL_DENSITY 16.0
+#endif
+#ifndef IBL_MAX_SAMPLES
+#define IBL_MAX_SAMPLES 2048
+#endif
 
 // Low-discrepancy point i of n in [0, 1)^2 (Hammersley).
 vec2 ibl_hammersley(int i, int n) {
@@ -19,6 +25,48 @@ vec2 ibl_hammersley(int i, int n) {
 // Sub-pixel offset of sample i in [-0.5, 0.5)^2 (the R2 sequence, uncorrelated with the Hammersley points).
 vec2 ibl_subpixel(int i) {
     return fract(vec2(0.5) + float(i) * vec2(0.7548776662466927, 0.5698402909980532)) - 0.5;
+}
+
+// The unit normal ns and unit view ray is (eye -> surface) at sub-pixel offset o [px] of the pixel whose centre has
+// N, I and screen derivatives dN, dI. A fragment shader that knows the surface better defines
+// IBL_SUBPIXEL_FRAME(o, ns, is) (object.frag.glsl: the surface's osculating quadric hit by the offset's own camera
+// ray, right also where the normal turns fast across a pixel, e.g. at a sphere's rim); otherwise the derivatives
+// extrapolate linearly. Beyond the silhouette (the surface turned away): the pixel centre.
+void ibl_subpixel_frame(vec2 o, vec3 N, vec3 I, vec3 dNdx, vec3 dNdy, vec3 dIdx, vec3 dIdy, out vec3 ns, out vec3 is) {
+#ifdef IBL_SUBPIXEL_FRAME
+    IBL_SUBPIXEL_FRAME(o, ns, is);
+#else
+    ns = normalize(N + o.x * dNdx + o.y * dNdy);
+    is = normalize(I + o.x * dIdx + o.y * dIdy);
+#endif
+    if (dot(ns, -is) <= 1e-4) {
+        ns = N;
+        is = I;
+    }
+}
+
+// The mirror direction at sub-pixel offset o (ibl_subpixel_frame).
+vec3 ibl_subpixel_reflect(vec2 o, vec3 N, vec3 I, vec3 dNdx, vec3 dNdy, vec3 dIdx, vec3 dIdy) {
+    vec3 ns, is;
+    ibl_subpixel_frame(o, N, I, dNdx, dNdy, dIdx, dIdy, ns, is);
+    return reflect(is, ns);
+}
+
+// The pixel's footprint in mirror directions: the changes rx, ry of the mirror direction across the pixel.
+void ibl_footprint(vec3 N, vec3 I, vec3 dNdx, vec3 dNdy, vec3 dIdx, vec3 dIdy, out vec3 rx, out vec3 ry) {
+    rx = ibl_subpixel_reflect(vec2(0.5, 0.0), N, I, dNdx, dNdy, dIdx, dIdy)
+         - ibl_subpixel_reflect(vec2(-0.5, 0.0), N, I, dNdx, dNdy, dIdx, dIdy);
+    ry = ibl_subpixel_reflect(vec2(0.0, 0.5), N, I, dNdx, dNdy, dIdx, dIdy)
+         - ibl_subpixel_reflect(vec2(0.0, -0.5), N, I, dNdx, dNdy, dIdx, dIdy);
+}
+
+// Lookups for a pixel whose reflected directions (footprint and lobe) cover `omega` sr of a cube of face size
+// `size`: IBL_DENSITY a level-0 texel, at least n_min, at most IBL_MAX_SAMPLES. A fixed count under-samples large
+// footprints (a small object's pixels, a rim), where a few filtered lookups blur a small bright light into the
+// wrong pixels; the total over an object stays bounded by the texels it reflects.
+int ibl_sample_count(float omega, float size, int n_min) {
+    float texel = 4.0 * IBL_PI / (6.0 * size * size);
+    return clamp(int(ceil(IBL_DENSITY * omega / texel)), max(n_min, 1), max(n_min, IBL_MAX_SAMPLES));
 }
 
 // Smith G1 of GGX for a direction at cosine c to the normal.
@@ -75,29 +123,37 @@ vec2 ibl_dfg(sampler2D dfg, float mu, float roughness) {
     return texture(dfg, (x * 31.0 + 0.5) / 32.0).rg;
 }
 
-// Single-scattering GGX reflection of the environment towards the eye, Schlick Fresnel f0 -> f90, n samples
-// spread over the pixel (dN, dI: screen derivatives of the normal and of the view ray). Rough lobes read the mip of
-// each sample's solid angle (+1 level, Colbert & Krivanek's bias), all lookups at least the level of the sample spacing.
+// Single-scattering GGX reflection of the environment towards the eye, Schlick Fresnel f0 -> f90, over the pixel's
+// footprint (dN, dI: screen derivatives of the normal and of the view ray): ibl_sample_count lookups for the
+// footprint plus lobe_share times the lobe's solid angle (pi alpha^2; 0 for a map whose bright texels were taken out
+// as lights), at least n_min. Rough lobes read the mip of each sample's solid angle, all lookups at least the level
+// of the cell spacing.
 vec3 ibl_specular(samplerCube env, float size, vec3 N, vec3 I, vec3 dNdx, vec3 dNdy, vec3 dIdx, vec3 dIdy,
-                  float roughness, vec3 f0, vec3 f90, int n) {
+                  float roughness, vec3 f0, vec3 f90, int n_min, float lobe_share) {
     float alpha = max(roughness * roughness, IBL_MIN_ALPHA);
-    vec3 R = reflect(I, N);
-    float spread = max(length(reflect(I + dIdx, normalize(N + dNdx)) - R),
-                       length(reflect(I + dIdy, normalize(N + dNdy)) - R)) / sqrt(float(n));
-    float lod_fp = ibl_footprint_lod(spread, size);
+    vec3 rx, ry;
+    ibl_footprint(N, I, dNdx, dNdy, dIdx, dIdy, rx, ry);
+    float fp = length(cross(rx, ry));  // the footprint's solid angle [sr]
+    int n = ibl_sample_count(fp + lobe_share * IBL_PI * alpha * alpha, size, n_min);
+    // the pixel as a g x g grid of cells (g^2: the footprint's share of n), each read at its centre by n / g^2 lobe
+    // samples (Hammersley points, shifted per cell): the midpoint rule over the footprint, which unlike scattered
+    // sub-pixel points stays balanced for a small bright light at any count
+    int g = clamp(int(sqrt(float(ibl_sample_count(fp, size, 1)))), 1, int(sqrt(float(n))));
+    int cells = g * g, per = max(1, n / cells);
+    n = cells * per;
+    float lod_fp = ibl_footprint_lod(max(length(rx), length(ry)) / float(g), size);
     vec3 sum = vec3(0.0);
     for (int i = 0; i < n; ++i) {
-        vec2 o = ibl_subpixel(i);
-        vec3 ns = normalize(N + o.x * dNdx + o.y * dNdy);
-        vec3 vs = -normalize(I + o.x * dIdx + o.y * dIdy);
-        if (dot(ns, vs) <= 1e-4) {  // beyond the silhouette (the rim's extrapolated derivatives): the pixel centre
-            ns = N;
-            vs = -I;
-        }
+        int c = i % cells;
+        vec4 u = vec4((vec2(c % g, c / g) + 0.5) / float(g),
+                      fract(ibl_hammersley(i / cells, per) + ibl_subpixel(c) + 0.5));
+        vec3 ns, is;
+        ibl_subpixel_frame(u.xy - 0.5, N, I, dNdx, dNdy, dIdx, dIdy, ns, is);
+        vec3 vs = -is;
         vec3 t = normalize(abs(ns.z) < 0.999 ? cross(vec3(0.0, 0.0, 1.0), ns) : cross(vec3(1.0, 0.0, 0.0), ns));
         vec3 b = cross(ns, t);
         vec3 vl = vec3(dot(vs, t), dot(vs, b), dot(vs, ns));
-        vec3 hl = ibl_sample_vndf(vl, alpha, ibl_hammersley(i, n));
+        vec3 hl = ibl_sample_vndf(vl, alpha, u.zw);
         vec3 h = hl.x * t + hl.y * b + hl.z * ns;
         float vh = max(dot(vs, h), 0.0);
         vec3 l = 2.0 * vh * h - vs;
@@ -127,13 +183,8 @@ vec3 ibl_specular_split(samplerCube chain, float max_level, float size, sampler2
     float lod = max(max_level + 2.0 * log2(max(roughness, 1e-3)), ibl_footprint_lod(spread, size));
     vec3 sum = vec3(0.0);
     for (int i = 0; i < n; ++i) {
-        vec2 o = ibl_subpixel(i);
-        vec3 ns = normalize(N + o.x * dNdx + o.y * dNdy);
-        vec3 is = normalize(I + o.x * dIdx + o.y * dIdy);
-        if (dot(ns, -is) <= 1e-4) {  // beyond the silhouette (the rim's extrapolated derivatives): the pixel centre
-            ns = N;
-            is = I;
-        }
+        vec3 ns, is;
+        ibl_subpixel_frame(ibl_subpixel(i), N, I, dNdx, dNdy, dIdx, dIdy, ns, is);
         vec3 r = reflect(is, ns);
         vec3 d = normalize(mix(r, ns, alpha * alpha));
         vec2 ab = ibl_dfg(dfg, dot(ns, -is), roughness);
@@ -206,12 +257,12 @@ vec3 ibl_refraction(samplerCube env, float size, vec3 N, vec3 I, vec3 dNdx, vec3
     float lod_r = ibl_footprint_lod(spread_r, size);
     vec3 sum = vec3(0.0);
     for (int i = 0; i < n; ++i) {
-        vec2 o = ibl_subpixel(i);
-        vec3 ns = normalize(N + o.x * dNdx + o.y * dNdy);
-        vec3 is = normalize(I + o.x * dIdx + o.y * dIdy);
+        vec3 ns, is;
+        ibl_subpixel_frame(ibl_subpixel(i), N, I, dNdx, dNdy, dIdx, dIdy, ns, is);
         float F = fresnel(clamp(-dot(is, ns), 0.0, 1.0), ior);
         vec3 through = F < 1.0 ? textureLod(env, refract(is, ns, 1.0 / ior), lod_t).rgb : vec3(0.0);
         sum += (1.0 - F) * through + F * textureLod(env, reflect(is, ns), lod_r).rgb;
     }
     return sum / float(n);
 }
+
