@@ -76,10 +76,11 @@ class IblCompositor(Node):
                               "sampled = importance sampling of the whole map; texel_sum = exact sums over a small mip "
                               "level (slow references)")
         spec_samples: int = param(SPEC_SAMPLES, min=1, max=4096,
-                                  doc="lookups per pixel of a rough specular lobe (hybrid) [count]; fewer is faster "
-                                      "and noisier")
+                                  doc="least lookups per pixel of a rough specular lobe (hybrid; more where the "
+                                      "pixel's footprint covers more map texels, up to 2048) [count]")
         aa_samples: int = param(AA_SAMPLES, min=1, max=1024,
-                                doc="lookups spread over each pixel for mirror, glass and smooth lobes [count]")
+                                doc="least lookups spread over each pixel for mirror and smooth lobes (more with the "
+                                    "footprint, as spec_samples); glass uses exactly this many [count]")
 
     def setup(self) -> None:
         p = self.params
